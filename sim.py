@@ -1,0 +1,743 @@
+"""sim.py: the PyBullet assembly world of tacrl (paper Sec. 4.1-4.3.2 and 5.1.1).
+
+A UR5 (assets/ur5.urdf, built from its DH parameters) with a 6-axis force/torque sensor on the fixed
+joint between flange and tool, an eye-in-hand camera, and one of two task boards built from boxes so
+that the clearances are exact:
+    peg   a 16 mm round peg into a 16-gon hole, 0.1 mm diametral clearance, 25 mm deep,
+          0.5 mm x 45 deg entry chamfer
+    gear  a 12-tooth gear slides 15 mm down a 10 mm shaft (0.1 mm clearance) while meshing with a
+          fixed mating gear, so x, y and the rotation about z must align (about 0.03 rad)
+
+`AssemblyEnv` is Gymnasium-style without gymnasium: reset(seed, options) -> (obs, info) and
+step(action) -> (obs, reward, terminated, truncated, info). The policy runs at 5 Hz, the admittance
+controller of control.py at 120 Hz, physics at 240 Hz. What this file implements of the paper:
+    Eq. 11     task-attention ROI             -> roi_box, render_roi
+    Eq. 13-15  error injection                -> AssemblyEnv.reset
+    Eq. 17-18  reward and success             -> reward, AssemblyEnv.step
+
+Frames and units: metres, radians, newtons. World z is up; the table top is z = 0. A tool pose X is
+the tool tip (the peg tip, the gear's lower face) with the tool's z axis pointing down. Observed
+poses are relative to the estimated goal X^_g (the task 'origin'), wrenches are in the tool frame.
+No ground truth (X_g, X_i) reaches the observation: only the reward and the success check use it.
+
+Run `python sim.py --gui` to watch the hand-designed policy on the peg board.
+"""
+import contextlib
+import os
+import sys
+import tempfile
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@contextlib.contextmanager
+def quiet_c_output():
+    """Silence what Bullet's C++ prints straight to the file descriptors (its banner on import,
+    URDF importer warnings), so that a user's error message is the one line they see."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    saved = [os.dup(1), os.dup(2)]
+    null = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(null, 1)
+        os.dup2(null, 2)
+        yield
+    finally:
+        os.dup2(saved[0], 1)
+        os.dup2(saved[1], 2)
+        for fd in saved + [null]:
+            os.close(fd)
+
+
+with quiet_c_output():
+    import pybullet as p
+    from pybullet_utils import bullet_client
+
+import control as ctl
+
+ASSETS = os.path.join(os.path.dirname(os.path.abspath(__file__)), "assets")
+
+# ---------------------------------------------------------------- constants (paper Sec. 5.1.1)
+POLICY_HZ, CONTROL_HZ, PHYSICS_HZ = 5, 120, 240
+CONTROL_PER_POLICY = CONTROL_HZ // POLICY_HZ        # 24 controller ticks per action
+PHYSICS_PER_CONTROL = PHYSICS_HZ // CONTROL_HZ      # 2 physics steps per controller tick
+MAX_STEPS = 120                                     # policy steps per episode (24 s)
+HIST = 32                                           # length of the pose and wrench histories
+IMG = 80                                            # the policy's image is IMG x IMG gray
+F_MAX = 10.0                                        # F^max, N
+TAU_MAX = 1.0                                       # torque analogue of F^max, N m (our choice)
+F_MAX6 = np.array([F_MAX] * 3 + [TAU_MAX] * 3)
+W_REWARD = (1.0, 0.8, 1.0)                          # w1, w2, w3 of Eq. 17
+R_SUCC = 100.0                                      # r_succ of Eq. 18
+E_TH = 0.002                                        # E_th of Eq. 18, m: tip within 2 mm of X_g
+E_R_FINAL = 0.020                                   # final error range, m (x, y, z)
+E_ROT_FINAL = 0.1                                   # error about z at the final range, rad
+EX_MIN = 0.002                                      # floor of the exploration range, m (K stays finite)
+EX_ROT = (0.02, 0.02)                               # exploration about x, y, rad: keeps the tool upright
+APPROACH = 0.030                                    # X_i: tip this far above the board top, m
+TRAJ_TIME = 10.0                                    # tau(t) from X^_i to X^_g takes this long, s
+MASS = np.array([20.0, 20.0, 20.0, 0.4, 0.4, 0.4])  # M of Eq. 5: kg and kg m^2 (see README)
+JOINT_TORQUE_CAP = [10.0, 10.0, 10.0, 2.0, 2.0, 2.0]  # N m: the motors' limits (UR5 rated: 150 / 28)
+ZETA = 1.0                                          # damping ratio, B = 2 zeta sqrt(K M)
+
+PEG_RADIUS = 0.008
+PEG_LENGTH = 0.050
+HOLE_DEPTH = 0.025
+CHAMFER = 0.0005                                    # 0.5 mm x 45 deg entry chamfer
+BOARD_THICK = 0.030
+SHAFT_RADIUS = 0.005
+SHAFT_HEIGHT = 0.015
+GEAR_THICK = 0.015
+GEAR_TEETH = 12
+GEAR_R_ROOT, GEAR_R_TIP = 0.011, 0.022
+TOOTH_WIDTH = 0.0041                                # sets the yaw tolerance: about 0.03 rad
+GEAR_CENTRES = 0.040                                # distance shaft to mating gear, m
+HOLDER_LENGTH = 0.040
+
+ROBOT_HOME = [np.pi, -np.pi / 2, np.pi / 2, -np.pi / 2, -np.pi / 2, 0.0]
+R_DOWN = np.diag([1.0, -1.0, -1.0])                  # tool z down, tool x along world x
+
+# full camera view: 800 x 800 px, 60 deg (the paper's ROI-800*800); ROIs are windows of it
+CAM_FULL, CAM_FOV, CAM_NEAR, CAM_FAR = 800, 60.0, 0.01, 2.0
+ROI_PRESETS = {"full": (800, 800), "300": (300, 300), "200": (200, 200), "100x160": (100, 160)}
+
+WHITE, GREY, DARK, BLACK = (0.92, 0.92, 0.9, 1), (0.55, 0.55, 0.55, 1), (0.2, 0.2, 0.22, 1), (0.03, 0.03, 0.03, 1)
+ORANGE, BRASS, TEAL = (0.95, 0.5, 0.1, 1), (0.8, 0.65, 0.2, 1), (0.1, 0.5, 0.55, 1)
+
+
+# ---------------------------------------------------------------- contexts (Sec. 5.1.4, Fig. 12)
+@dataclass(frozen=True)
+class Context:
+    """Where the board stands and what surrounds it."""
+    board_xy: tuple = (0.50, 0.0)
+    board_yaw: float = 0.0
+    table_rgba: tuple = (0.62, 0.48, 0.34, 1)
+    board_rgba: tuple = WHITE
+    distractors: bool = False
+
+
+CONTEXTS = {
+    "train": Context(),
+    "loc-1": Context(board_xy=(0.42, 0.14)),
+    "loc-2": Context(board_xy=(0.58, -0.10), board_yaw=0.3),
+    "loc-3": Context(board_xy=(0.40, -0.16), board_yaw=-0.2),
+    "bg-objects": Context(distractors=True),
+    "bg-colour": Context(table_rgba=(0.2, 0.3, 0.45, 1), board_rgba=(0.75, 0.85, 0.7, 1)),
+}
+
+
+# ---------------------------------------------------------------- geometry helpers
+def quat_from_matrix(R):
+    """Rotation matrix (3, 3) -> pybullet quaternion (x, y, z, w)."""
+    w = np.sqrt(max(1e-12, 1.0 + R[0, 0] + R[1, 1] + R[2, 2])) / 2.0
+    if w > 1e-3:
+        return [(R[2, 1] - R[1, 2]) / (4 * w), (R[0, 2] - R[2, 0]) / (4 * w), (R[1, 0] - R[0, 1]) / (4 * w), w]
+    i = int(np.argmax(np.diag(R)))
+    j, k = (i + 1) % 3, (i + 2) % 3
+    s = np.sqrt(max(1e-12, 1.0 + R[i, i] - R[j, j] - R[k, k])) * 2.0
+    q = [0.0, 0.0, 0.0, (R[k, j] - R[j, k]) / s]
+    q[i], q[j], q[k] = s / 4.0, (R[j, i] + R[i, j]) / s, (R[k, i] + R[i, k]) / s
+    return q
+
+
+def to_world(R, wrench):
+    """A tool-frame wrench (6,) in world axes, given the tool's rotation R."""
+    return np.concatenate([R @ wrench[:3], R @ wrench[3:]])
+
+
+def matrix_from_quat(q):
+    return np.array(p.getMatrixFromQuaternion(q)).reshape(3, 3)
+
+
+def rot_x(a):
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def ring_boxes(r_in, thick, z0, z1, n):
+    """A regular n-gon hole of inscribed radius r_in between heights z0 < z1, walled by n boxes of
+    radial thickness `thick`. Returns [(half_extents, position, R)]. The walls are a little longer
+    than a side so that their corners close; the overlap lies outside the hole."""
+    side = 2.0 * r_in * np.tan(np.pi / n) + 2.0 * thick
+    out = []
+    for i in range(n):
+        a = 2.0 * np.pi * i / n
+        pos = ((r_in + thick / 2) * np.cos(a), (r_in + thick / 2) * np.sin(a), (z0 + z1) / 2)
+        out.append(((thick / 2, side / 2, (z1 - z0) / 2), pos, ctl.rot_z(a)))
+    return out
+
+
+def chamfer_boxes(r_in, c, n, thick=0.002):
+    """A c x 45 deg chamfer at z in [-c, 0] on an n-gon of inscribed radius r_in: one box per side
+    whose inner face is the slope from (r_in, -c) to (r_in + c, 0); the box lies outward and below
+    the slope, inside the wall and the top ring, so nothing sticks into the hole or above the top."""
+    side = 2.0 * (r_in + c) * np.tan(np.pi / n) + 2.0 * thick
+    slope = c * np.sqrt(2.0)
+    out = []
+    for i in range(n):
+        a = 2.0 * np.pi * i / n
+        # in the wall's own frame (x radial out, z up): slope mid-point, then half the thickness
+        # along the outward-down normal (1, 0, -1)/sqrt(2)
+        mid = np.array([r_in + c / 2, 0.0, -c / 2]) + thick / 2 * np.array([1.0, 0.0, -1.0]) / np.sqrt(2)
+        R = ctl.rot_z(a) @ np.array([[np.cos(np.pi / 4), 0, np.sin(np.pi / 4)], [0, 1, 0],
+                                     [-np.sin(np.pi / 4), 0, np.cos(np.pi / 4)]])
+        # box axes: x = slope normal (outward-down), y = tangent, z = along the slope
+        out.append(((thick / 2, side / 2, slope / 2), tuple(ctl.rot_z(a) @ mid), R))
+    return out
+
+
+def plate_boxes(opening, size, z0, z1):
+    """A square plate of side `size` with a square opening of half-side `opening`, as four boxes."""
+    h, w = (z1 - z0) / 2, (size / 2 - opening) / 2
+    zc = (z0 + z1) / 2
+    return [((w, size / 2, h), (opening + w, 0.0, zc), np.eye(3)),
+            ((w, size / 2, h), (-opening - w, 0.0, zc), np.eye(3)),
+            ((opening, w, h), (0.0, opening + w, zc), np.eye(3)),
+            ((opening, w, h), (0.0, -opening - w, zc), np.eye(3))]
+
+
+def gear_teeth(r_root, r_tip, width, n, z0, z1, phase=0.0):
+    """n radial teeth, boxes from r_root to r_tip, at angles phase + 2 pi i / n."""
+    out = []
+    for i in range(n):
+        a = phase + 2.0 * np.pi * i / n
+        r = (r_root + r_tip) / 2
+        out.append((((r_tip - r_root) / 2, width / 2, (z1 - z0) / 2), (r * np.cos(a), r * np.sin(a), (z0 + z1) / 2),
+                    ctl.rot_z(a)))
+    return out
+
+
+# ---------------------------------------------------------------- the tool, written into the URDF
+def _urdf_box(he, pos, R, rgba):
+    rpy = p.getEulerFromQuaternion(quat_from_matrix(R))
+    o = f'<origin xyz="{pos[0]:.7f} {pos[1]:.7f} {pos[2]:.7f}" rpy="{rpy[0]:.7f} {rpy[1]:.7f} {rpy[2]:.7f}"/>'
+    g = f'<geometry><box size="{2 * he[0]:.7f} {2 * he[1]:.7f} {2 * he[2]:.7f}"/></geometry>'
+    return (f'<visual>{o}{g}<material name="c{hash(rgba) & 0xffff}"><color rgba="{" ".join(map(str, rgba))}"/>'
+            f'</material></visual><collision>{o}{g}</collision>')
+
+
+def _urdf_cylinder(r, z0, z1, rgba):
+    o = f'<origin xyz="0 0 {(z0 + z1) / 2:.7f}"/>'
+    g = f'<geometry><cylinder radius="{r:.7f}" length="{z1 - z0:.7f}"/></geometry>'
+    return (f'<visual>{o}{g}<material name="c{hash(rgba) & 0xffff}"><color rgba="{" ".join(map(str, rgba))}"/>'
+            f'</material></visual><collision>{o}{g}</collision>')
+
+
+def tool_xml(task, clearance):
+    """The tool link's contents (tool frame: z down along the tool, origin at the sensor face).
+    Returns (xml, tip_offset): the tool tip sits at (0, 0, tip_offset) in the tool frame."""
+    inertial = '<inertial><origin xyz="0 0 0"/><mass value="0.1"/><inertia ixx="5e-5" iyy="5e-5" izz="5e-5" ixy="0" ixz="0" iyz="0"/></inertial>'
+    if task == "peg":
+        # Collision: 8 thin boxes (blades) turned by pi/8, whose 16 tips lie on the peg's circle.
+        # Bullet's cylinders keep a ~1 mm rounded margin when loaded from URDF (changeDynamics does
+        # not reach into the link's compound), which would hide a 0.1 mm clearance; boxes are exact.
+        half_w = 0.0005
+        half_l = np.sqrt(PEG_RADIUS ** 2 - half_w ** 2)    # blade corners exactly on the circle
+        o = f'<origin xyz="0 0 {PEG_LENGTH / 2:.7f}"/>'
+        vis = (f'<visual>{o}<geometry><cylinder radius="{PEG_RADIUS:.7f}" length="{PEG_LENGTH:.7f}"/></geometry>'
+               f'<material name="peg"><color rgba="{" ".join(map(str, ORANGE))}"/></material></visual>')
+        cols = "".join(
+            f'<collision><origin xyz="0 0 {PEG_LENGTH / 2:.7f}" rpy="0 0 {k * np.pi / 8:.7f}"/><geometry>'
+            f'<box size="{2 * half_l:.7f} {2 * half_w:.7f} {PEG_LENGTH:.7f}"/></geometry></collision>\n' for k in range(8))
+        return inertial + vis + cols, PEG_LENGTH
+    # gear: a holder, then the gear (bore ring + teeth) from z0 to z1, tip = the gear's lower face.
+    # The tool frame's z points down, so its x-y plane is mirrored against the board's: the teeth
+    # are symmetric about the x axis and the mirror does not matter.
+    z0, z1 = HOLDER_LENGTH, HOLDER_LENGTH + GEAR_THICK
+    parts = [_urdf_cylinder(0.008, 0.0, z0, DARK)]
+    ring = ring_boxes(SHAFT_RADIUS + clearance / 2, GEAR_R_ROOT + 0.002 - SHAFT_RADIUS, z0, z1, 12)
+    parts += [_urdf_box(he, pos, R, BRASS) for he, pos, R in ring]
+    parts += [_urdf_box(he, pos, R, BRASS) for he, pos, R in
+              gear_teeth(GEAR_R_ROOT, GEAR_R_TIP, TOOTH_WIDTH, GEAR_TEETH, z0, z1)]
+    return inertial + "\n".join(parts), z1
+
+
+def robot_urdf(task, clearance):
+    """assets/ur5.urdf with the task's tool written into its `tool` link; returns (path, tip_offset)."""
+    with open(os.path.join(ASSETS, "ur5.urdf")) as f:
+        text = f.read()
+    xml, tip = tool_xml(task, clearance)
+    path = os.path.join(tempfile.gettempdir(), f"tacrl_ur5_{task}_{clearance:.6f}_{os.getpid()}.urdf")
+    with open(path, "w") as f:
+        f.write(text.replace("<!-- TOOL -->", xml))
+    return path, tip
+
+
+# ---------------------------------------------------------------- Eq. 17-18: reward
+def reward(x, x_g, w, f, success):
+    """Eq. 17: r = -w1 ||(X - X_g)/W|| - w2 ||F/F_max|| + w3 r_succ.
+    x, x_g: poses (p, R); w: workspace W (6,); f: wrench (6,), only its force part counts.
+    We use the x, y, z and rotation-about-z parts of X - X_g (the ones the errors live in)."""
+    e = ctl.pose_error(x, x_g)[[0, 1, 2, 5]] / w[[0, 1, 2, 5]]
+    r_succ = R_SUCC if success else 0.0                               # Eq. 18
+    return -W_REWARD[0] * np.linalg.norm(e) - W_REWARD[1] * np.linalg.norm(f[:3] / F_MAX) + W_REWARD[2] * r_succ
+
+
+def is_success(x, x_g):
+    """Eq. 18: ||X - X_g|| < E_th on the tip position. X_g is the fully inserted pose (the peg tip on
+    the hole bottom, the gear down on the shaft's shoulder), so this needs 23 mm of insertion into the
+    0.1 mm hole (13 mm for the gear): a peg stuck on the surface is >= 23 mm away and cannot pass."""
+    return bool(np.linalg.norm(x[0] - x_g[0]) < E_TH)
+
+
+# ---------------------------------------------------------------- the world
+class World:
+    """The PyBullet scene: table, UR5 with tool, sensor and camera, one task board, distractors.
+    One DIRECT (or GUI) client of its own; every call names it."""
+
+    def __init__(self, task="peg", clearance=1e-4, gui=False):
+        self.task, self.clearance = task, clearance
+        self.bc = bullet_client.BulletClient(p.GUI if gui else p.DIRECT)
+        bc = self.bc
+        bc.setTimeStep(1.0 / PHYSICS_HZ)
+        # The arm runs gravity-compensated, as a UR's own controller does, so its motors can be
+        # torque-limited: full-strength velocity motors pressed 300 N spikes into the board and
+        # bounced the admittance loop. With no free bodies in the scene nothing else needs gravity.
+        bc.setGravity(0, 0, 0)
+        bc.setPhysicsEngineParameter(numSolverIterations=50, enableFileCaching=0)
+        if gui:
+            bc.configureDebugVisualizer(p.COV_ENABLE_GUI, 0)
+        # table: top at z = 0
+        col = bc.createCollisionShape(p.GEOM_BOX, halfExtents=[0.6, 0.6, 0.02])
+        vis = bc.createVisualShape(p.GEOM_BOX, halfExtents=[0.6, 0.6, 0.02], rgbaColor=[0.62, 0.48, 0.34, 1])
+        self.table = bc.createMultiBody(0, col, vis, [0.45, 0.0, -0.02])
+        # robot with the task's tool
+        path, self.tip_offset = robot_urdf(task, clearance)
+        with quiet_c_output():
+            self.robot = bc.loadURDF(path, useFixedBase=True, flags=p.URDF_USE_INERTIA_FROM_FILE)
+        os.remove(path)
+        names = {bc.getJointInfo(self.robot, j)[12].decode(): j for j in range(bc.getNumJoints(self.robot))}
+        self.arm = list(range(6))
+        self.ft_joint, self.tool_link, self.cam_link = names["tool"], names["tool"], names["camera"]
+        self.max_force = JOINT_TORQUE_CAP
+        bc.enableJointForceTorqueSensor(self.robot, self.ft_joint, True)
+        bc.changeDynamics(self.robot, self.tool_link, collisionMargin=0.0, lateralFriction=0.3)
+        for j in self.arm:   # no default motors fighting ours
+            bc.setJointMotorControl2(self.robot, j, p.VELOCITY_CONTROL, targetVelocity=0, force=self.max_force[j])
+        self.plate, self.parts = self._build_board()
+        self.distractors = self._build_distractors()
+        self.context = None
+        self.f_bias = np.zeros(6)
+        self.view_proj = None          # cached camera projection for the ROI
+        self.goal_yaw = 0.0
+
+    # -- scene construction -------------------------------------------------------------
+    def _compound(self, parts):
+        """Static bodies from [(half_extents, pos, R, rgba)] boxes, 16 boxes a body: pybullet 3.2.7
+        segfaults in createVisualShapeArray past 16 shapes. Returns the list of body ids."""
+        bc, bodies = self.bc, []
+        for k in range(0, len(parts), 16):
+            chunk = parts[k:k + 16]
+            he = [list(pt[0]) for pt in chunk]
+            pos = [list(pt[1]) for pt in chunk]
+            orn = [quat_from_matrix(pt[2]) for pt in chunk]
+            col = bc.createCollisionShapeArray([p.GEOM_BOX] * len(chunk), halfExtents=he,
+                                               collisionFramePositions=pos, collisionFrameOrientations=orn)
+            vis = bc.createVisualShapeArray([p.GEOM_BOX] * len(chunk), halfExtents=he,
+                                            rgbaColors=[list(pt[3]) for pt in chunk],
+                                            visualFramePositions=pos, visualFrameOrientations=orn)
+            body = bc.createMultiBody(0, col, vis, [0, 0, 0])
+            bc.changeDynamics(body, -1, lateralFriction=0.3)
+            bodies.append(body)
+        return bodies
+
+    def _build_board(self):
+        """The task board in its own frame: origin on the board's top surface at the hole (shaft)
+        axis, z up; X_g is expressed in this frame (goal_in_board). Returns (plate bodies, other
+        bodies as [(body, z offset of its base)])."""
+        t = BOARD_THICK
+        if self.task == "peg":
+            r_h = PEG_RADIUS + self.clearance / 2      # inscribed radius of the 16-gon hole
+            plate = [(he, pos, R, WHITE) for he, pos, R in plate_boxes(0.012, 0.12, -t, 0.0)]
+            parts = [(he, pos, R, BLACK) for he, pos, R in ring_boxes(r_h, 0.012, -HOLE_DEPTH, -CHAMFER, 16)]
+            parts += [(he, pos, R, GREY) for he, pos, R in chamfer_boxes(r_h, CHAMFER, 16)]
+            parts += [(he, pos, R, DARK) for he, pos, R in ring_boxes(r_h + CHAMFER, 0.012 - CHAMFER, -CHAMFER, 0.0, 16)]
+            parts.append(((0.02, 0.02, (t - HOLE_DEPTH) / 2), (0, 0, -(t + HOLE_DEPTH) / 2), np.eye(3), BLACK))
+            return self._compound(plate), [(b, 0.0) for b in self._compound(parts)]
+        # gear board: plate, fixed mating gear (hub + teeth, a gap facing the shaft), shaft body
+        plate = [((0.06, 0.06, t / 2), (0, 0, -t / 2), np.eye(3), WHITE)]
+        c = GEAR_CENTRES
+        teeth = gear_teeth(GEAR_R_ROOT, GEAR_R_TIP, TOOTH_WIDTH, GEAR_TEETH, 0.0, GEAR_THICK, phase=np.pi / GEAR_TEETH)
+        parts = [(he, (pos[0] + c, pos[1], pos[2]), R, TEAL) for he, pos, R in teeth]
+        parts.append(((GEAR_R_ROOT * 0.95, GEAR_R_ROOT * 0.95, GEAR_THICK / 2), (c, 0, GEAR_THICK / 2), np.eye(3), TEAL))
+        bc = self.bc
+        col = bc.createCollisionShape(p.GEOM_CYLINDER, radius=SHAFT_RADIUS, height=SHAFT_HEIGHT)
+        vis = bc.createVisualShape(p.GEOM_CYLINDER, radius=SHAFT_RADIUS, length=SHAFT_HEIGHT, rgbaColor=DARK)
+        shaft = bc.createMultiBody(0, col, vis, [0, 0, SHAFT_HEIGHT / 2])
+        bc.changeDynamics(shaft, -1, collisionMargin=0.0, lateralFriction=0.3)
+        return self._compound(plate), [(b, 0.0) for b in self._compound(parts)] + [(shaft, SHAFT_HEIGHT / 2)]
+
+    def _build_distractors(self):
+        bc, out = self.bc, []
+        for he, rgba in [((0.03, 0.02, 0.025), (0.8, 0.1, 0.1, 1)), ((0.02, 0.02, 0.04), (0.1, 0.2, 0.8, 1)),
+                         ((0.025, 0.035, 0.015), (0.9, 0.85, 0.1, 1))]:
+            col = bc.createCollisionShape(p.GEOM_BOX, halfExtents=he)
+            vis = bc.createVisualShape(p.GEOM_BOX, halfExtents=he, rgbaColor=rgba)
+            out.append((bc.createMultiBody(0, col, vis, [5, 5, -1]), he))
+        return out
+
+    # -- placement ------------------------------------------------------------------------
+    def goal_in_board(self):
+        """X_g in the board frame: the fully inserted tip position (hole bottom / shaft shoulder)."""
+        return np.array([0.0, 0.0, -HOLE_DEPTH if self.task == "peg" else 0.0])
+
+    def place(self, ctx, shift=np.zeros(4)):
+        """Put the board where context `ctx` says, moved by shift = (dx, dy, dz, dyaw); returns the
+        true goal X_g and pre-assembly point X_i as poses (p, R)."""
+        bc = self.bc
+        yaw = ctx.board_yaw + shift[3]
+        R_b = ctl.rot_z(yaw)
+        top = np.array([ctx.board_xy[0] + shift[0], ctx.board_xy[1] + shift[1], BOARD_THICK + shift[2]])
+        q = quat_from_matrix(R_b)
+        for body, dz in [(b, 0.0) for b in self.plate] + self.parts:
+            bc.resetBasePositionAndOrientation(body, (top + [0, 0, dz]).tolist(), q)
+        if ctx != self.context:
+            bc.changeVisualShape(self.table, -1, rgbaColor=ctx.table_rgba)
+            for body in self.plate:
+                for i in range(len(bc.getVisualShapeData(body))):
+                    bc.changeVisualShape(body, -1, shapeIndex=i, rgbaColor=ctx.board_rgba)
+            spots = [(-0.09, 0.07), (0.02, -0.10), (0.10, 0.08)]
+            for (body, he), (dx, dy) in zip(self.distractors, spots):
+                pos = [ctx.board_xy[0] + dx, ctx.board_xy[1] + dy, he[2]] if ctx.distractors else [5, 5, -1]
+                bc.resetBasePositionAndOrientation(body, pos, [0, 0, 0, 1])
+            self.context = ctx
+        R_g = ctl.rot_z(yaw) @ R_DOWN
+        p_g = top + R_b @ self.goal_in_board()
+        p_i = top + np.array([0.0, 0.0, APPROACH])
+        self.goal_yaw = yaw
+        return (p_g, R_g), (p_i, R_g)
+
+    # -- robot state ------------------------------------------------------------------------
+    def tool_pose(self):
+        """Tip pose X = (p, R) in world; tool z axis along the tool, pointing down."""
+        s = self.bc.getLinkState(self.robot, self.tool_link, computeForwardKinematics=True)
+        R = matrix_from_quat(s[5])
+        return np.array(s[4]) + R[:, 2] * self.tip_offset, R
+
+    def joint_positions(self):
+        return np.array([s[0] for s in self.bc.getJointStates(self.robot, self.arm)])
+
+    def jacobian(self, q):
+        """6 x 6 geometric Jacobian at the tool tip (world axes). The tool link's centre of mass is
+        its frame origin, so the local position is just the tip offset."""
+        lin, ang = self.bc.calculateJacobian(self.robot, self.tool_link, [0, 0, self.tip_offset], q.tolist(),
+                                             [0.0] * 6, [0.0] * 6)
+        return np.vstack([np.array(lin), np.array(ang)])
+
+    def raw_wrench(self):
+        """Reaction of the fixed sensor joint: the wrench the tool exerts on the flange, at the sensor
+        origin, in the tool frame (pybullet's joint frame for a fixed joint whose child frame is the
+        tool link). Includes the tool's weight, removed by `tare`."""
+        return np.array(self.bc.getJointState(self.robot, self.ft_joint)[2])
+
+    def tare(self):
+        self.f_bias = self.raw_wrench()
+
+    def wrench_tool(self, raw):
+        """Wrench the environment exerts on the tool (F of Eq. 4), moved to the tool tip, tool frame."""
+        w = -(raw - self.f_bias)
+        f, tau = w[:3], w[3:]
+        r = np.array([0.0, 0.0, self.tip_offset])   # sensor origin -> tip
+        return np.concatenate([f, tau - np.cross(r, f)])
+
+    def move_to(self, x):
+        """Teleport the arm so that the tip is at pose x (IK from the home pose, so deterministic)."""
+        bc = self.bc
+        p_t, R = x
+        target = p_t - R[:, 2] * self.tip_offset
+        q = list(ROBOT_HOME)
+        for _ in range(3):
+            for j, v in zip(self.arm, q):
+                bc.resetJointState(self.robot, j, v, 0.0)
+            q = bc.calculateInverseKinematics(self.robot, self.tool_link, target.tolist(), quat_from_matrix(R),
+                                              maxNumIterations=200, residualThreshold=1e-9)[:6]
+        for j, v in zip(self.arm, q):
+            bc.resetJointState(self.robot, j, v, 0.0)
+
+    def command(self, qdot):
+        self.bc.setJointMotorControlArray(self.robot, self.arm, p.VELOCITY_CONTROL, targetVelocities=qdot.tolist(),
+                                          forces=self.max_force)
+
+    def tick(self, policy, t, f_tool, f_d):
+        """One 120 Hz controller tick of the hybrid policy (Eq. 6): read the pose, feed the last
+        wrench (tool frame, turned to world axes) and F_d to the admittance law, command the joint
+        velocities, step physics. Returns the new wrench reading (tool frame, at the tip)."""
+        x = self.tool_pose()
+        qdot = policy(t, x, to_world(x[1], f_tool), f_d, self.jacobian(self.joint_positions()))
+        self.command(qdot)
+        return self.wrench_tool(self.step_physics(PHYSICS_PER_CONTROL))
+
+    def step_physics(self, n):
+        """n physics steps; returns the mean sensor reading over them (the sensor jitters step to step)."""
+        acc = np.zeros(6)
+        for _ in range(n):
+            self.bc.stepSimulation()
+            acc += self.raw_wrench()
+        return acc / n
+
+    # -- camera ----------------------------------------------------------------------------
+    def camera_matrices(self, cam_pose=None):
+        """View matrix (4, 4) of the eye-in-hand camera (optical axis = camera z, image up =
+        camera -x) and the projection of the full 800 x 800 view; both as numpy, column vectors."""
+        if cam_pose is None:
+            s = self.bc.getLinkState(self.robot, self.cam_link, computeForwardKinematics=True)
+            cam_pose = (np.array(s[4]), matrix_from_quat(s[5]))
+        eye, R = cam_pose
+        view = np.array(self.bc.computeViewMatrix(eye.tolist(), (eye + R[:, 2]).tolist(), (-R[:, 0]).tolist()))
+        return view.reshape(4, 4).T
+
+    def render_roi(self, roi, size=IMG):
+        """Gray image (size, size) uint8 of the window roi = (u0, v0, u1, v1) of the full 800 x 800
+        view, rendered directly (an off-centre frustum) rather than rendered large and cropped: the
+        cost of TinyRenderer grows with the pixel count."""
+        u0, v0, u1, v1 = roi
+        h = CAM_NEAR * np.tan(np.radians(CAM_FOV / 2))
+        left, right = (2 * u0 / CAM_FULL - 1) * h, (2 * u1 / CAM_FULL - 1) * h
+        top, bottom = (1 - 2 * v0 / CAM_FULL) * h, (1 - 2 * v1 / CAM_FULL) * h
+        proj = self.bc.computeProjectionMatrix(left, right, bottom, top, CAM_NEAR, CAM_FAR)
+        view = self.camera_matrices()
+        img = self.bc.getCameraImage(size, size, view.T.flatten().tolist(), proj, renderer=p.ER_TINY_RENDERER,
+                                     flags=p.ER_NO_SEGMENTATION_MASK)[2]
+        rgb = np.asarray(img, np.uint8).reshape(size, size, 4)[:, :, :3].astype(np.float32)
+        return (rgb @ np.array([0.299, 0.587, 0.114], np.float32)).astype(np.uint8)
+
+    def render_external(self, w=480, h=360):
+        """An external RGB view of the task for videos."""
+        tgt = self.bc.getBasePositionAndOrientation(self.plate[0])[0]
+        view = self.bc.computeViewMatrixFromYawPitchRoll(tgt, 0.35, 50, -25, 0, 2)
+        proj = self.bc.computeProjectionMatrixFOV(50, w / h, 0.01, 3)
+        img = self.bc.getCameraImage(w, h, view, proj, renderer=p.ER_TINY_RENDERER)[2]
+        return np.asarray(img, np.uint8).reshape(h, w, 4)[:, :, :3]
+
+    def close(self):
+        self.bc.disconnect()
+
+
+def probe(world, x_start, x_target, f_d=np.zeros(6), ex=(1e-5, 1e-5, 0.05, 0.02, 0.02, 0.001), seconds=6.0,
+          duration=3.0):
+    """Drive the tip from x_start toward x_target with the admittance controller and a given
+    exploration range per axis (by default stiff in x, y and yaw, soft in z), holding F_d.
+    For the geometry tests: a stiff lateral hold shows the clearance itself, not the chamfer's
+    self-centring. Returns the final tip pose, the mean tool-frame wrench of the last 1 s and the
+    mean total contact normal force on the robot over that second (pybullet's contact points)."""
+    world.move_to(x_start)
+    world.command(np.zeros(6))
+    world.step_physics(4)
+    world.move_to(x_start)
+    world.tare()
+    pol = ctl.HybridPolicy(x_start, x_target, np.asarray(ex, float), F_MAX6, MASS, duration, ZETA, 1.0 / CONTROL_HZ)
+    f_tool, n, hist, normal = np.zeros(6), int(seconds * CONTROL_HZ), [], []
+    for i in range(n):
+        f_tool = world.tick(pol, i / CONTROL_HZ, f_tool, f_d)
+        hist.append(f_tool)
+        normal.append(sum(c[9] for c in world.bc.getContactPoints(world.robot)))
+    return world.tool_pose(), np.mean(hist[-CONTROL_HZ:], 0), float(np.mean(normal[-CONTROL_HZ:]))
+
+
+# ---------------------------------------------------------------- Eq. 11: task-attention ROI
+def task_features(task):
+    """3-D points (board frame) of the features the policy needs to see: the hole's rim, or the
+    shaft's top and the mating gear's teeth near the mesh point."""
+    a = np.linspace(0, 2 * np.pi, 16, endpoint=False)
+    if task == "peg":
+        r = PEG_RADIUS + CHAMFER
+        return np.stack([r * np.cos(a), r * np.sin(a), np.zeros_like(a)], 1)
+    shaft = np.stack([SHAFT_RADIUS * np.cos(a), SHAFT_RADIUS * np.sin(a), np.full_like(a, SHAFT_HEIGHT)], 1)
+    mesh = np.array([[GEAR_CENTRES - GEAR_R_TIP * np.cos(b), GEAR_R_TIP * np.sin(b), GEAR_THICK] for b in (-0.6, 0.6)])
+    return np.vstack([shaft, mesh])
+
+
+def project(points, view, proj):
+    """World points (n, 3) -> pixel coordinates (n, 2) (u right, v down) in the full 800 x 800 view."""
+    ph = np.hstack([points, np.ones((len(points), 1))]) @ (proj @ view).T
+    ndc = ph[:, :2] / ph[:, 3:4]
+    return np.stack([(ndc[:, 0] + 1) / 2 * CAM_FULL, (1 - ndc[:, 1]) / 2 * CAM_FULL], 1)
+
+
+def full_projection():
+    h = CAM_NEAR * np.tan(np.radians(CAM_FOV / 2))
+    return np.array(p.computeProjectionMatrix(-h, h, -h, h, CAM_NEAR, CAM_FAR)).reshape(4, 4).T
+
+
+def roi_box(world, x_i, board_pose, e_r, e_rot, directions, margin=8):
+    """Eq. 11: ROI = [min(x_min^i, y_min^i), max(x_max^i, y_max^i)] over the alignment directions i.
+
+    The camera rides on the tool, so an error e of the pre-assembly point moves the camera by e. For
+    each direction (x, y, z or rotation about z) and each sign we place the camera at X_i + e, project
+    the task features into the full view and take the box around everything (plus `margin` px).
+    Returns (u0, v0, u1, v1) in pixels of the full 800 x 800 view."""
+    bc = world.bc
+    # camera pose relative to the tip, from the robot as it stands
+    x_now = world.tool_pose()
+    s = bc.getLinkState(world.robot, world.cam_link, computeForwardKinematics=True)
+    cam_rel = (x_now[1].T @ (np.array(s[4]) - x_now[0]), x_now[1].T @ matrix_from_quat(s[5]))
+    p_b, R_b = board_pose
+    pts = p_b + task_features(world.task) @ R_b.T
+    proj, uv = full_projection(), []
+    for d in [None] + list(directions):
+        for sign in (-1.0, 1.0):
+            p_t, R_t = x_i[0].copy(), x_i[1]
+            if d in (0, 1, 2):
+                p_t[d] += sign * e_r
+            elif d == 5:
+                R_t = ctl.rot_z(sign * e_rot) @ R_t
+            cam = (p_t + R_t @ cam_rel[0], R_t @ cam_rel[1])
+            uv.append(project(pts, world.camera_matrices(cam), proj))
+    uv = np.vstack(uv)
+    lo, hi = np.clip(uv.min(0) - margin, 0, CAM_FULL), np.clip(uv.max(0) + margin, 0, CAM_FULL)
+    return float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1])
+
+
+def preset_roi(name, centre):
+    """The ablation's fixed windows (height x width in px of the full view) around `centre` (u, v)."""
+    hgt, wid = ROI_PRESETS[name]
+    u0 = float(np.clip(centre[0] - wid / 2, 0, CAM_FULL - wid))
+    v0 = float(np.clip(centre[1] - hgt / 2, 0, CAM_FULL - hgt))
+    return u0, v0, u0 + wid, v0 + hgt
+
+
+# ---------------------------------------------------------------- the env
+class AssemblyEnv:
+    """Residual-RL assembly env (Algorithm 1's 'interact with environment').
+
+    task: 'peg' or 'gear'; context: a name in CONTEXTS; e_r: guidance error range E_r (m, x y z;
+    the rotation error about z scales with it, E_ROT_FINAL at E_R_FINAL); ex_r: exploration range
+    Ex_r (m), sets K through Eq. 8-9, floored at EX_MIN; roi: 'task' (Eq. 11) or a preset name;
+    clearance: diametral clearance, m.
+
+    obs = {'image': (80, 80) uint8, 'pose_hist': (32, 6) float32 [x y z (m) rx ry rz (rad)] of the
+    tip relative to X^_g in X^_g's frame, newest last, 'wrench_hist': (32, 6) float32 [F (N), T (N m)]
+    in the tool frame at the tip, newest last}.
+    action (6,) in [-1, 1] -> F_d = action * F_max/2 per axis: +-5 N, +-0.5 N m.
+    """
+
+    def __init__(self, task="peg", context="train", e_r=0.0, ex_r=None, roi="task", clearance=1e-4,
+                 gui=False, image=True, use_base_policy=True):
+        if task not in ("peg", "gear"):
+            raise ValueError(f"unknown task {task!r} (peg, gear)")
+        if context not in CONTEXTS:
+            raise ValueError(f"unknown context {context!r} ({', '.join(CONTEXTS)})")
+        if roi != "task" and roi not in ROI_PRESETS:
+            raise ValueError(f"unknown roi {roi!r} (task, {', '.join(ROI_PRESETS)})")
+        self.task, self.context, self.roi_name, self.image_on = task, context, roi, image
+        self.use_base_policy = use_base_policy
+        self.world = World(task, clearance, gui)
+        self.set_ranges(e_r, ex_r)
+        self.rng = np.random.default_rng()
+        self.roi = None
+        self.t, self.steps = 0.0, 0
+
+    def set_ranges(self, e_r, ex_r=None):
+        """E_r (guidance error) and Ex_r (exploration) in m; the curriculum calls this between episodes."""
+        self.e_r = float(e_r)
+        self.ex_r = max(float(self.e_r if ex_r is None else ex_r), EX_MIN)
+
+    @property
+    def dt(self):
+        return 1.0 / POLICY_HZ
+
+    def _alignment_directions(self):
+        return (0, 1) if self.task == "peg" else (0, 1, 5)
+
+    def _compute_roi(self, x_i, ctx):
+        """Eq. 11 at the final error range, or a preset window centred on the task features."""
+        w = self.world
+        p_b = np.array([ctx.board_xy[0], ctx.board_xy[1], BOARD_THICK])
+        board = (p_b, ctl.rot_z(ctx.board_yaw))
+        if self.roi_name == "task":
+            return roi_box(w, x_i, board, E_R_FINAL, E_ROT_FINAL, self._alignment_directions())
+        c = roi_box(w, x_i, board, 0.0, 0.0, ())
+        return preset_roi(self.roi_name, ((c[0] + c[2]) / 2, (c[1] + c[3]) / 2))
+
+    def reset(self, seed=None, options=None):
+        """Eq. 13-15: e ~ U(-1, 1) * E_r in x, y, z and rotation about z; X^_i = X_i + e, X^_g = X_g + e.
+        options: 'error' (4,) fixes e; 'goal_shift' (4,) moves the board (and so X_g) by (dx, dy, dz, dyaw)."""
+        if seed is not None:
+            self.rng = np.random.default_rng(seed)
+        options = options or {}
+        w, ctx = self.world, CONTEXTS[self.context]
+        scale = np.array([self.e_r] * 3 + [E_ROT_FINAL * self.e_r / E_R_FINAL])
+        e = np.asarray(options["error"], float) if "error" in options else self.rng.uniform(-1, 1, 4) * scale  # Eq. 13
+        self.x_g, self.x_i = w.place(ctx, np.asarray(options.get("goal_shift", np.zeros(4)), float))
+        R_e = ctl.rot_z(e[3])
+        self.x_g_hat = (self.x_g[0] + e[:3], R_e @ self.x_g[1])      # Eq. 15
+        self.x_i_hat = (self.x_i[0] + e[:3], R_e @ self.x_i[1])      # Eq. 14
+        self.error = e
+        ex_rot = max(E_ROT_FINAL * self.ex_r / E_R_FINAL, 0.01)
+        ex = np.array([self.ex_r] * 3 + list(EX_ROT) + [ex_rot])
+        self.policy = ctl.HybridPolicy(self.x_i_hat, self.x_g_hat, ex, F_MAX6, MASS, TRAJ_TIME, ZETA,
+                                       1.0 / CONTROL_HZ)
+        if not self.use_base_policy:   # the 'vanilla' baseline: no trajectory, the residual acts alone
+            self.policy.x_d = lambda t, x0=self.x_i_hat: x0
+        w.move_to(self.x_i_hat)
+        w.command(np.zeros(6))
+        w.step_physics(4)
+        w.move_to(self.x_i_hat)
+        w.tare()
+        if self.roi is None or self._roi_key != (self.context, self.roi_name):
+            self.roi, self._roi_key = self._compute_roi(self.x_i, ctx), (self.context, self.roi_name)
+        self.t, self.steps = 0.0, 0
+        self.f_tool, self.f_tick = np.zeros(6), np.zeros(6)
+        x = w.tool_pose()
+        self.pose_hist = np.repeat(self._rel_pose(x)[None], HIST, 0)
+        self.wrench_hist = np.zeros((HIST, 6), np.float32)
+        return self._obs(), self._info(x, False)
+
+    def _rel_pose(self, x):
+        """Tip pose relative to X^_g, in X^_g's frame: [x y z rx ry rz] (m, rad), float32."""
+        p_g, R_g = self.x_g_hat
+        return np.concatenate([R_g.T @ (x[0] - p_g), ctl.matrix_to_rotvec(R_g.T @ x[1])]).astype(np.float32)
+
+    def _obs(self):
+        img = self.world.render_roi(self.roi) if self.image_on else np.zeros((IMG, IMG), np.uint8)
+        return {"image": img, "pose_hist": self.pose_hist.copy(), "wrench_hist": self.wrench_hist.copy()}
+
+    def _info(self, x, success):
+        depth = float(self.x_i[0][2] - APPROACH - x[0][2])   # tip below the board top, m
+        return {"success": success, "depth": depth, "t": self.t, "f_tool": self.f_tool.copy(),
+                "f_world": to_world(x[1], self.f_tool),
+                "e_r": self.e_r, "ex_r": self.ex_r, "error": self.error.copy(), "roi": self.roi}
+
+    def action_to_fd(self, action):
+        """a in [-1, 1]^6 -> F_d (6,) = a * F_max/2 (world axes at the tip): +-5 N and +-0.5 N m."""
+        return np.clip(np.asarray(action, float), -1.0, 1.0) * F_MAX6 / 2
+
+    def step(self, action):
+        w = self.world
+        f_d = self.action_to_fd(action)
+        f_sum = np.zeros(6)
+        for _ in range(CONTROL_PER_POLICY):            # the 120 Hz controller, Eq. 5-6
+            self.f_tick = w.tick(self.policy, self.t, self.f_tick, f_d)
+            f_sum += self.f_tick
+            self.t += 1.0 / CONTROL_HZ
+        # The wrench the policy sees is the mean over the 0.2 s step: rigid contact makes the
+        # per-tick reading chatter (impacts of 10-20 N between empty ticks) around the right mean.
+        self.f_tool = f_sum / CONTROL_PER_POLICY
+        self.steps += 1
+        x = w.tool_pose()
+        success = is_success(x, self.x_g)
+        r = reward(x, self.x_g, self.policy.w, to_world(x[1], self.f_tool), success)
+        self.pose_hist = np.vstack([self.pose_hist[1:], self._rel_pose(x)[None]])
+        self.wrench_hist = np.vstack([self.wrench_hist[1:], self.f_tool.astype(np.float32)[None]])
+        truncated = not success and self.steps >= MAX_STEPS
+        return self._obs(), float(r), success, truncated, self._info(x, success)
+
+    def close(self):
+        self.world.close()
+
+
+if __name__ == "__main__":
+    import argparse
+    ap = argparse.ArgumentParser(description="watch the hand-designed policy")
+    ap.add_argument("--task", default="peg", choices=["peg", "gear"])
+    ap.add_argument("--gui", action="store_true")
+    ap.add_argument("--error-mm", type=float, default=0.0)
+    a = ap.parse_args()
+    env = AssemblyEnv(a.task, e_r=a.error_mm / 1000, gui=a.gui)
+    obs, info = env.reset(seed=0)
+    done = False
+    while not done:
+        obs, r, term, trunc, info = env.step(np.zeros(6))
+        print(f"t={info['t']:5.1f}s depth={info['depth'] * 1000:6.2f}mm F={np.round(info['f_world'][:3], 2)} r={r:7.2f}")
+        done = term or trunc

@@ -1,0 +1,168 @@
+"""The world of sim.py: geometry that really blocks, a wrist sensor that reads what is pressed,
+observations that carry no ground truth, the reward and the env's interface."""
+import numpy as np
+import pytest
+
+import control as ctl
+import sim
+
+
+@pytest.fixture(scope="module")
+def peg_world():
+    w = sim.World("peg")
+    yield w, *w.place(sim.CONTEXTS["train"])
+    w.close()
+
+
+@pytest.fixture(scope="module")
+def gear_world():
+    w = sim.World("gear")
+    yield w, *w.place(sim.CONTEXTS["train"])
+    w.close()
+
+
+def insert(world, x_g, x_i, dx=0.0, dyaw=0.0):
+    """Stiff lateral hold at (dx, dyaw) off the goal, soft in z, aim 5 mm below X_g."""
+    R = ctl.rot_z(dyaw) @ x_g[1]
+    x, f, _ = sim.probe(world, (x_i[0] + [dx, 0, 0], R), (x_g[0] + [dx, 0, -0.005], R))
+    return x, f
+
+
+def test_dh_model_matches_forward_kinematics(peg_world):
+    w = peg_world[0]
+    q = [0.3, -1.2, 1.4, -1.8, -1.5, 0.4]
+    for j, v in zip(w.arm, q):
+        w.bc.resetJointState(w.robot, j, v)
+    d = [0.089159, 0, 0, 0.10915, 0.09465, 0.0823]
+    a = [0, -0.425, -0.39225, 0, 0, 0]
+    al = [np.pi / 2, 0, 0, np.pi / 2, -np.pi / 2, 0]
+    T = np.eye(4)
+    for i in range(6):
+        ct, st, ca, sa = np.cos(q[i]), np.sin(q[i]), np.cos(al[i]), np.sin(al[i])
+        T = T @ np.array([[ct, -st * ca, st * sa, a[i] * ct], [st, ct * ca, -ct * sa, a[i] * st], [0, sa, ca, d[i]],
+                          [0, 0, 0, 1]])
+    s = w.bc.getLinkState(w.robot, 6, computeForwardKinematics=True)    # the flange
+    np.testing.assert_allclose(s[4], T[:3, 3], atol=1e-5)
+
+
+def test_peg_inserts_when_centred(peg_world):
+    w, x_g, x_i = peg_world
+    x, _ = insert(w, x_g, x_i, 0.0)
+    assert sim.is_success(x, x_g)
+    assert sim.BOARD_THICK - x[0][2] > 0.023             # 23+ mm deep in the hole
+
+
+@pytest.mark.parametrize("dx", [0.0002, -0.0001])
+def test_peg_blocked_off_centre(peg_world, dx):
+    # the default clearance is 0.1 mm diametral: more than 0.05 mm off and the peg cannot enter
+    w, x_g, x_i = peg_world
+    x, f = insert(w, x_g, x_i, dx)
+    assert not sim.is_success(x, x_g)
+    assert sim.BOARD_THICK - x[0][2] < 0.001             # resting on the chamfer / rim
+    assert -f[2] > 0.5                                   # and the sensor feels the board push back
+
+
+def test_gear_inserts_when_aligned(gear_world):
+    w, x_g, x_i = gear_world
+    for dyaw in (0.0, 0.02):
+        x, _ = insert(w, x_g, x_i, dyaw=dyaw)
+        assert sim.is_success(x, x_g), dyaw
+
+
+@pytest.mark.parametrize("dyaw", [0.1, -0.1, 0.05])
+def test_gear_blocked_when_rotated(gear_world, dyaw):
+    w, x_g, x_i = gear_world
+    x, _ = insert(w, x_g, x_i, dyaw=dyaw)
+    assert not sim.is_success(x, x_g)
+    assert x[0][2] - x_g[0][2] > 0.010                   # stopped on the teeth / shaft top
+
+
+def test_wrist_sensor_reads_pressed_force(peg_world):
+    # press on the board 35 mm from the hole with F_d = 5 N down; at rest the tool-frame reading
+    # (tool z points down, the board pushes up) must be -5 N within 10 %. An independent check:
+    # the contact normal forces pybullet reports on the robot. They are a snapshot of the last
+    # physics step of each tick and chatter with the impacts, so their 1 s mean gets a 30 % bound.
+    w, x_g, _ = peg_world
+    p0 = x_g[0] + [0.035, 0.0, sim.HOLE_DEPTH]
+    x, f, normal = sim.probe(w, (p0 + [0, 0, 0.01], x_g[1]), (p0.copy(), x_g[1]),
+                             f_d=np.array([0, 0, 5.0, 0, 0, 0]), ex=(0.002, 0.002, 0.02, 0.02, 0.02, 0.01))
+    assert abs(-f[2] - 5.0) < 0.5, f
+    assert abs(normal - 5.0) < 1.5, normal
+    assert np.linalg.norm(f[:2]) < 1.5                   # mostly normal to the board
+
+
+def test_observation_carries_no_ground_truth():
+    env = sim.AssemblyEnv("peg", e_r=0.01, image=False)
+    e = np.array([0.004, -0.003, 0.002, 0.0])
+    shift = np.array([0.006, 0.002, 0.0, 0.0])
+    o1, _ = env.reset(seed=1, options={"error": e})
+    # move the board (and so X_g) by `shift` and the error by -shift: X^_g is the same
+    o2, _ = env.reset(seed=1, options={"error": e - shift, "goal_shift": shift})
+    assert not np.allclose(env.x_g[0][:2], sim.CONTEXTS["train"].board_xy)
+    np.testing.assert_allclose(o1["pose_hist"], o2["pose_hist"], atol=1e-6)
+    np.testing.assert_allclose(o1["wrench_hist"], o2["wrench_hist"], atol=1e-6)
+    env.close()
+
+
+def test_env_interface_and_seeded_errors():
+    env = sim.AssemblyEnv("peg", e_r=0.02)
+    obs, info = env.reset(seed=3)
+    assert obs["image"].shape == (sim.IMG, sim.IMG) and obs["image"].dtype == np.uint8
+    assert obs["pose_hist"].shape == (32, 6) and obs["pose_hist"].dtype == np.float32
+    assert obs["wrench_hist"].shape == (32, 6) and obs["wrench_hist"].dtype == np.float32
+    assert obs["image"].std() > 5                        # the camera sees something, not a flat field
+    e1 = info["error"]
+    assert np.all(np.abs(e1[:3]) <= 0.02) and abs(e1[3]) <= sim.E_ROT_FINAL
+    obs2, r, term, trunc, info = env.step(np.ones(6))
+    assert isinstance(r, float) and not term and not trunc
+    assert not np.allclose(obs2["pose_hist"][-1], obs["pose_hist"][-1])
+    np.testing.assert_allclose(env.reset(seed=3)[1]["error"], e1)        # seeds reproduce
+    assert not np.allclose(env.reset(seed=4)[1]["error"], e1)
+    np.testing.assert_allclose(env.action_to_fd([2, -1, 0.5, 1, 0, -1]), [5, -5, 2.5, 0.5, 0, -0.5])
+    env.close()
+
+
+def test_reward_eq17():
+    x_g = (np.zeros(3), np.eye(3))
+    w = np.full(6, 0.02)
+    x = (np.array([0.02, 0.0, 0.0]), np.eye(3))
+    f = np.array([0.0, 0.0, 10.0, 0, 0, 0])
+    assert sim.reward(x, x_g, w, f, False) == pytest.approx(-1.0 - 0.8)
+    assert sim.reward(x_g, x_g, w, np.zeros(6), True) == pytest.approx(100.0)
+    assert sim.is_success((np.array([0, 0, 0.0019]), np.eye(3)), x_g)
+    assert not sim.is_success((np.array([0, 0, 0.0021]), np.eye(3)), x_g)
+
+
+def test_roi_eq11_covers_the_error_range():
+    env = sim.AssemblyEnv("peg", e_r=0.0, image=False)
+    env.reset(seed=0)
+    u0, v0, u1, v1 = env.roi
+    full = sim.CAM_FULL
+    assert 0 <= u0 < u1 <= full and 0 <= v0 < v1 <= full
+    assert 50 < u1 - u0 < full and 50 < v1 - v0 < full        # a window, not the whole view
+    # the hole seen from X_i shifted by the final error range lies inside the ROI
+    small = sim.roi_box(env.world, env.x_i, (env.x_g[0] + [0, 0, sim.HOLE_DEPTH], np.eye(3)), 0.01, 0.0, (0, 1))
+    assert small[0] >= u0 and small[1] >= v0 and small[2] <= u1 and small[3] <= v1
+    env.close()
+
+
+@pytest.mark.parametrize("roi", ["full", "100x160"])
+def test_roi_presets(roi):
+    env = sim.AssemblyEnv("peg", roi=roi)
+    obs, _ = env.reset(seed=0)
+    u0, v0, u1, v1 = env.roi
+    assert (v1 - v0, u1 - u0) == sim.ROI_PRESETS[roi]
+    assert obs["image"].shape == (sim.IMG, sim.IMG)
+    env.close()
+
+
+@pytest.mark.parametrize("ctx", ["loc-2", "bg-objects", "bg-colour"])
+def test_contexts_change_the_scene(ctx):
+    base = sim.AssemblyEnv("peg")
+    other = sim.AssemblyEnv("peg", context=ctx)
+    o1, _ = base.reset(seed=0, options={"error": np.zeros(4)})
+    o2, i2 = other.reset(seed=0, options={"error": np.zeros(4)})
+    np.testing.assert_allclose(o1["pose_hist"], o2["pose_hist"], atol=1e-5)   # task-relative pose
+    assert np.abs(o1["image"].astype(int) - o2["image"].astype(int)).mean() > 0.5 or ctx == "bg-objects"
+    base.close()
+    other.close()
