@@ -288,7 +288,8 @@ class World:
 
     def __init__(self, task="peg", clearance=1e-4, gui=False):
         self.task, self.clearance = task, clearance
-        self.bc = bullet_client.BulletClient(p.GUI if gui else p.DIRECT)
+        with quiet_c_output():
+            self.bc = bullet_client.BulletClient(p.GUI if gui else p.DIRECT)
         bc = self.bc
         bc.setTimeStep(1.0 / PHYSICS_HZ)
         # The arm runs gravity-compensated, as a UR's own controller does, so its motors can be
