@@ -81,8 +81,9 @@ def parse_args(argv=None):
 
 
 def mean_std(x):
+    """[mean, std], or None where there is nothing to average (no successful episode): JSON null."""
     x = np.asarray(x, float)
-    return [float(x.mean()), float(x.std())] if len(x) else [float("nan"), float("nan")]
+    return [float(x.mean()), float(x.std())] if len(x) else None
 
 
 def evaluate(env, act, episodes, seed, video=None, log=print):
@@ -118,7 +119,7 @@ def evaluate(env, act, episodes, seed, video=None, log=print):
 
 
 def format_row(name, row):
-    ms = lambda k, f="{:.2f}": f"{f.format(row[k][0])} +- {f.format(row[k][1])}"
+    ms = lambda k, f="{:.2f}": "-" if row[k] is None else f"{f.format(row[k][0])} +- {f.format(row[k][1])}"
     return (f"{'policy':<22} {'SR':>5}  {'CT (s)':>14}  {'Fx (N)':>14}  {'Fy (N)':>14}  {'Fz (N)':>14}  {'CR':>16}\n"
             f"{name:<22} {row['success_rate']:5.2f}  {ms('completion_time_s'):>14}  {ms('contact_force_x_N'):>14}  "
             f"{ms('contact_force_y_N'):>14}  {ms('contact_force_z_N'):>14}  {ms('cumulative_reward', '{:.1f}'):>16}")
