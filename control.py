@@ -106,12 +106,14 @@ def joint_velocities(jac, v, damping=1e-3):
 
 
 # ---------------------------------------------------------------- the trajectory tau(t)
-def linear_trajectory(x_i, x_g, t, duration):
+def linear_trajectory(x_i, x_g, t, duration, rv=None):
     """tau(t): straight line from X^_i to X^_g in `duration` s (position lerp, rotation slerp),
-    then holds X^_g. Returns X_d = (p, R)."""
-    s = float(np.clip(t / duration, 0.0, 1.0))
+    then holds X^_g. Returns X_d = (p, R). rv: the rotation vector of R_i^T R_g, if precomputed."""
+    s = min(max(t / duration, 0.0), 1.0)
     (p_i, R_i), (p_g, R_g) = x_i, x_g
-    return p_i + s * (p_g - p_i), R_i @ rotvec_to_matrix(s * matrix_to_rotvec(R_i.T @ R_g))
+    if rv is None:
+        rv = matrix_to_rotvec(R_i.T @ R_g)
+    return p_i + s * (p_g - p_i), R_i @ rotvec_to_matrix(s * rv)
 
 
 # ---------------------------------------------------------------- Eq. 6: the hybrid policy
@@ -136,9 +138,10 @@ class HybridPolicy:
         self.w = workspace(self.ex_r, self.x_i_hat, self.x_g_hat)        # Eq. 8
         k = stiffness(self.f_max, self.w)                                 # Eq. 9
         self.adm = Admittance(np.asarray(self.m, float), critical_damping(k, self.m, self.zeta), k, self.dt)
+        self._rv = matrix_to_rotvec(self.x_i_hat[1].T @ self.x_g_hat[1])
 
     def x_d(self, t):
-        return linear_trajectory(self.x_i_hat, self.x_g_hat, t, self.duration)
+        return linear_trajectory(self.x_i_hat, self.x_g_hat, t, self.duration, self._rv)
 
     def __call__(self, t, x, f, f_d, jac):
         """One control tick: time t (s), tool pose X, wrench F (6,), residual F_d (6,), Jacobian (6, n)
