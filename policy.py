@@ -1,0 +1,290 @@
+"""policy.py: the task-attention multimodal residual policy (TA-MRP, paper Sec. 4.2.2) and a
+hand-written soft actor-critic (Sec. 4.3.2, Algorithm 1), torch and numpy only.
+
+Observations are dicts of arrays, as the env gives them:
+    image        (80, 80) uint8       the task-attention ROI, gray
+    pose_hist    (32, 6) float32      tip pose relative to X^_g [x y z rx ry rz], newest last
+    wrench_hist  (32, 6) float32      wrist wrench [Fx Fy Fz Tx Ty Tz], newest last
+Batched, a leading B. Actions are 6-D in [-1, 1] (the env maps them to F_d).
+
+The encoder (Fig. 4 of the paper) turns each modality into a 6-d feature and concatenates them:
+    image          -> 3-layer CNN, kernels 4/5/6, strides 3/3/4 (growing, as the paper says) -> 6
+    pose + wrench  -> 2-layer LSTM, 64 hidden, over the 32 steps of both series side by side
+                      (12 inputs a step), last hidden state -> 12 = a 6-d pose and a 6-d touch feature
+The paper fuses to an 18-d vector from "a 6-d image feature" and "6-d time-series features"; we
+read that as one 6-d feature per time series (pose and touch), 6 + 6 + 6 = 18, from the one LSTM
+the paper names. (Two LSTMs, one a series, cost twice as much per update on a CPU: the LSTM's 32
+sequential steps dominate the update.) The observation
+variants of the ablation (--obs) drop modalities:
+    ts-ptv  image + pose history + wrench history   18-d   (the method)
+    ts-pt   pose history + wrench history           12-d
+    pt      current pose + wrench, an MLP           12-d
+The fused vector goes through LayerNorm and tanh, then the 2 x 256 heads.
+"""
+import copy
+
+import numpy as np
+import torch
+import torch.nn as nn
+import torch.nn.functional as F
+
+OBS_KINDS = ("pt", "ts-pt", "ts-ptv")
+FEAT = 6                      # features per modality
+LOG_STD_MIN, LOG_STD_MAX = -5.0, 2.0
+
+
+def mlp(n_in, n_out, hidden=(256, 256)):
+    layers, d = [], n_in
+    for h in hidden:
+        layers += [nn.Linear(d, h), nn.ReLU()]
+        d = h
+    return nn.Sequential(*layers, nn.Linear(d, n_out))
+
+
+# ---------------------------------------------------------------- the multimodal encoder
+class ImageEncoder(nn.Module):
+    """3-layer CNN, growing kernels and strides: (B, 1, 80, 80) -> (B, 8, 26, 26) -> (B, 16, 8, 8)
+    -> (B, 32, 1, 1) -> (B, 6). Small on purpose: on 2 CPU cores its backward pass is most of an
+    update (bench/bench_sac.py)."""
+
+    def __init__(self, img=80):
+        super().__init__()
+        self.conv = nn.Sequential(nn.Conv2d(1, 8, 4, stride=3), nn.ReLU(),
+                                  nn.Conv2d(8, 16, 5, stride=3), nn.ReLU(),
+                                  nn.Conv2d(16, 32, 6, stride=4), nn.ReLU(), nn.Flatten())
+        with torch.no_grad():
+            n = self.conv(torch.zeros(1, 1, img, img)).shape[1]
+        self.fc = nn.Linear(n, FEAT)
+
+    def forward(self, img):                  # img: (B, 80, 80) uint8
+        return self.fc(self.conv(img.unsqueeze(1).float() / 255.0 - 0.5))
+
+
+class SeriesEncoder(nn.Module):
+    """2-layer LSTM, 64 hidden, over (B, 32, n_in) -> last hidden state -> (B, n_out)."""
+
+    def __init__(self, n_in=12, n_out=2 * FEAT, hidden=64):
+        super().__init__()
+        self.lstm = nn.LSTM(n_in, hidden, num_layers=2, batch_first=True)
+        self.fc = nn.Linear(hidden, n_out)
+
+    def forward(self, x):
+        out, _ = self.lstm(x)
+        return self.fc(out[:, -1])
+
+
+class Encoder(nn.Module):
+    """obs dict -> fused feature (B, out_dim). pose_scale, wrench_scale (6,): divide the raw SI
+    readings by these so that the inputs are of order 1 (the env's error range and F_max)."""
+
+    def __init__(self, kind="ts-ptv", pose_scale=np.ones(6), wrench_scale=np.ones(6), img=80):
+        super().__init__()
+        if kind not in OBS_KINDS:
+            raise ValueError(f"unknown observation kind {kind!r} ({', '.join(OBS_KINDS)})")
+        self.kind = kind
+        self.register_buffer("pose_scale", torch.as_tensor(np.asarray(pose_scale), dtype=torch.float32))
+        self.register_buffer("wrench_scale", torch.as_tensor(np.asarray(wrench_scale), dtype=torch.float32))
+        if kind == "pt":
+            self.now = mlp(12, 2 * FEAT, (64,))
+        else:
+            self.series = SeriesEncoder()
+        self.image = ImageEncoder(img) if kind == "ts-ptv" else None
+        self.out_dim = 3 * FEAT if kind == "ts-ptv" else 2 * FEAT
+        self.norm = nn.LayerNorm(self.out_dim)
+
+    def forward(self, obs):
+        pose = obs["pose_hist"] / self.pose_scale          # (B, 32, 6)
+        wrench = obs["wrench_hist"] / self.wrench_scale    # (B, 32, 6)
+        if self.kind == "pt":
+            z = [self.now(torch.cat([pose[:, -1], wrench[:, -1]], 1))]
+        else:
+            z = [self.series(torch.cat([pose, wrench], 2))]     # (B, 12): pose and touch features
+        if self.image is not None:
+            z.append(self.image(obs["image"]))
+        return torch.tanh(self.norm(torch.cat(z, 1)))       # the fusion vector, (B, 18) for ts-ptv
+
+
+# ---------------------------------------------------------------- actor and critics
+class Actor(nn.Module):
+    """Fusion vector -> 2 x 256 MLP -> mean and log-std of a 6-d Gaussian, squashed by tanh."""
+
+    def __init__(self, n_feat, act_dim=6):
+        super().__init__()
+        self.net = mlp(n_feat, 2 * act_dim)
+
+    def forward(self, z, deterministic=False, with_logp=True):
+        mu, log_std = self.net(z).chunk(2, -1)
+        log_std = LOG_STD_MIN + 0.5 * (LOG_STD_MAX - LOG_STD_MIN) * (torch.tanh(log_std) + 1)
+        u = mu if deterministic else mu + log_std.exp() * torch.randn_like(mu)
+        a = torch.tanh(u)
+        if not with_logp:
+            return a, None
+        # log pi(a) of the squashed Gaussian: log N(u) - sum log(1 - tanh(u)^2), written stably
+        logp = (-0.5 * ((u - mu) / log_std.exp()) ** 2 - log_std - 0.5 * np.log(2 * np.pi)).sum(-1)
+        logp = logp - (2 * (np.log(2) - u - F.softplus(-2 * u))).sum(-1)
+        return a, logp
+
+
+class TwinQ(nn.Module):
+    """Two Q heads, each a 2 x 256 MLP on [fusion vector, action]."""
+
+    def __init__(self, n_feat, act_dim=6):
+        super().__init__()
+        self.q1, self.q2 = mlp(n_feat + act_dim, 1), mlp(n_feat + act_dim, 1)
+
+    def forward(self, z, a):
+        za = torch.cat([z, a], -1)
+        return self.q1(za).squeeze(-1), self.q2(za).squeeze(-1)
+
+
+# ---------------------------------------------------------------- replay buffer
+class ReplayBuffer:
+    """Ring buffer of transitions (o, a, r, o', terminated). Images are kept as uint8 (6.4 kB
+    each); o' is stored next to o, which doubles the memory but keeps sampling a plain index."""
+
+    def __init__(self, capacity, obs_shapes, act_dim=6):
+        self.capacity, self.n, self.i = capacity, 0, 0
+        self.obs = {k: np.zeros((capacity, *s), np.uint8 if k == "image" else np.float32)
+                    for k, s in obs_shapes.items()}
+        self.next_obs = {k: np.zeros_like(v) for k, v in self.obs.items()}
+        self.act = np.zeros((capacity, act_dim), np.float32)
+        self.rew = np.zeros(capacity, np.float32)
+        self.term = np.zeros(capacity, np.float32)
+
+    def __len__(self):
+        return self.n
+
+    def add_episode(self, ep):
+        """ep: {'obs': {k: (T + 1, ...)}, 'act': (T, 6), 'rew': (T,), 'term': (T,)}: the T + 1
+        observations of one episode and its T transitions."""
+        T = len(ep["act"])
+        for t in range(T):
+            j = self.i
+            for k in self.obs:
+                self.obs[k][j] = ep["obs"][k][t]
+                self.next_obs[k][j] = ep["obs"][k][t + 1]
+            self.act[j], self.rew[j], self.term[j] = ep["act"][t], ep["rew"][t], ep["term"][t]
+            self.i = (self.i + 1) % self.capacity
+            self.n = min(self.n + 1, self.capacity)
+
+    def sample(self, batch, rng):
+        idx = rng.integers(0, self.n, batch)
+        return ({k: v[idx] for k, v in self.obs.items()}, self.act[idx], self.rew[idx],
+                {k: v[idx] for k, v in self.next_obs.items()}, self.term[idx])
+
+
+# ---------------------------------------------------------------- soft actor-critic
+def td_target(r, terminated, q_next, logp_next, alpha, gamma):
+    """y = r + gamma (1 - terminated) (min Q'(s', a') - alpha log pi(a'|s')). Only a real end of the
+    task (success) cuts the bootstrap; an episode cut by the time limit (truncated) is stored with
+    terminated = 0, because the state it stopped in still has a future."""
+    return r + gamma * (1.0 - terminated) * (q_next - alpha * logp_next)
+
+
+class SAC:
+    """SAC (Haarnoja et al. 2018) with twin Q, target networks (Polyak), automatic temperature
+    (target entropy -|A|). TD target: y = r + gamma (1 - terminated) (min Q'(s', a') - alpha log pi(a'|s')),
+    so a time-out (truncated) bootstraps and only a real end (success) does not.
+
+    shared_encoder: the actor reads the critic's encoder with the gradient stopped (as in SAC-AE
+    and DrQ), so the encoder learns from the TD error only and each update encodes o and o' once
+    each (o' by the target encoder, also for the next action a'); otherwise the actor has an
+    encoder of its own, trained through the actor loss.
+    """
+
+    def __init__(self, obs_kind="ts-ptv", pose_scale=np.ones(6), wrench_scale=np.ones(6), act_dim=6,
+                 lr=3e-4, gamma=0.99, tau=0.005, init_alpha=0.1, shared_encoder=True, device="cpu"):
+        self.device, self.gamma, self.tau, self.shared = torch.device(device), gamma, tau, shared_encoder
+        enc = lambda: Encoder(obs_kind, pose_scale, wrench_scale).to(self.device)  # noqa: E731
+        self.enc = enc()
+        self.q = TwinQ(self.enc.out_dim, act_dim).to(self.device)
+        self.enc_targ, self.q_targ = copy.deepcopy(self.enc), copy.deepcopy(self.q)
+        for p in list(self.enc_targ.parameters()) + list(self.q_targ.parameters()):
+            p.requires_grad_(False)
+        self.actor = Actor(self.enc.out_dim, act_dim).to(self.device)
+        self.actor_enc = None if shared_encoder else enc()
+        self.log_alpha = torch.tensor(np.log(init_alpha), dtype=torch.float32, device=self.device,
+                                      requires_grad=True)
+        self.target_entropy = -float(act_dim)
+        self._online_params = list(self.enc.parameters()) + list(self.q.parameters())
+        self._targ_params = list(self.enc_targ.parameters()) + list(self.q_targ.parameters())
+        self.q_opt = torch.optim.Adam(self._online_params, lr=lr, foreach=True)
+        actor_params = list(self.actor.parameters()) + ([] if shared_encoder else list(self.actor_enc.parameters()))
+        self.pi_opt = torch.optim.Adam(actor_params, lr=lr, foreach=True)
+        self.alpha_opt = torch.optim.Adam([self.log_alpha], lr=lr)
+
+    # -- acting ------------------------------------------------------------------------
+    def _tensor_obs(self, obs):
+        return {k: torch.as_tensor(v, device=self.device) for k, v in obs.items()}
+
+    def _actor_features(self, obs):
+        return (self.enc if self.shared else self.actor_enc)(obs)
+
+    @torch.no_grad()
+    def act(self, obs, deterministic=False):
+        """One env observation (unbatched dict) -> action (6,) in [-1, 1]."""
+        o = self._tensor_obs({k: v[None] for k, v in obs.items()})
+        a, _ = self.actor(self._actor_features(o), deterministic, with_logp=False)
+        return a[0].cpu().numpy()
+
+    # -- learning ----------------------------------------------------------------------
+    def update(self, batch):
+        """One gradient step on a batch from ReplayBuffer.sample; returns the losses."""
+        o, a, r, o2, term = batch
+        o, o2 = self._tensor_obs(o), self._tensor_obs(o2)
+        a, r, term = (torch.as_tensor(x, device=self.device) for x in (a, r, term))
+        alpha = self.log_alpha.exp().detach()
+        with torch.no_grad():
+            # o' is encoded once, by the target encoder, for both a' and Q' (shared encoder)
+            z2 = self.enc_targ(o2)
+            a2, logp2 = self.actor(z2 if self.shared else self.actor_enc(o2))
+            q1_t, q2_t = self.q_targ(z2, a2)
+            y = td_target(r, term, torch.min(q1_t, q2_t), logp2, alpha, self.gamma)
+        z = self.enc(o)
+        q1, q2 = self.q(z, a)
+        q_loss = F.mse_loss(q1, y) + F.mse_loss(q2, y)
+        self.q_opt.zero_grad(set_to_none=True)
+        q_loss.backward()
+        self.q_opt.step()
+
+        # actor: maximise min Q(s, pi(s)) - alpha log pi; the critic is only read here
+        z_pi = z.detach() if self.shared else self.actor_enc(o)
+        a_pi, logp = self.actor(z_pi)
+        for p in self.q.parameters():
+            p.requires_grad_(False)
+        q1_pi, q2_pi = self.q(z.detach(), a_pi)
+        for p in self.q.parameters():
+            p.requires_grad_(True)
+        pi_loss = (alpha * logp - torch.min(q1_pi, q2_pi)).mean()
+        self.pi_opt.zero_grad(set_to_none=True)
+        pi_loss.backward()
+        self.pi_opt.step()
+
+        alpha_loss = -(self.log_alpha * (logp.detach() + self.target_entropy)).mean()
+        self.alpha_opt.zero_grad(set_to_none=True)
+        alpha_loss.backward()
+        self.alpha_opt.step()
+
+        with torch.no_grad():   # Polyak averaging of the targets: p_targ <- (1 - tau) p_targ + tau p
+            torch._foreach_lerp_(self._targ_params, self._online_params, self.tau)
+        return {"q_loss": q_loss.item(), "pi_loss": pi_loss.item(), "alpha": alpha.item(),
+                "entropy": -logp.mean().item()}
+
+    # -- checkpoints -------------------------------------------------------------------
+    def modules(self):
+        m = {"enc": self.enc, "q": self.q, "enc_targ": self.enc_targ, "q_targ": self.q_targ, "actor": self.actor,
+             "q_opt": self.q_opt, "pi_opt": self.pi_opt, "alpha_opt": self.alpha_opt}
+        if self.actor_enc is not None:
+            m["actor_enc"] = self.actor_enc
+        return m
+
+    def state_dict(self):
+        d = {k: v.state_dict() for k, v in self.modules().items()}
+        d["log_alpha"] = self.log_alpha.detach().cpu()
+        return d
+
+    def load_state_dict(self, d):
+        for k, v in self.modules().items():
+            v.load_state_dict(d[k])
+        with torch.no_grad():
+            self.log_alpha.copy_(d["log_alpha"])
