@@ -74,7 +74,8 @@ E_TH = 0.002                                        # E_th of Eq. 18, m: tip wit
 E_R_FINAL = 0.020                                   # final error range, m (x, y, z)
 E_ROT_FINAL = 0.1                                   # error about z at the final range, rad
 EX_MIN = 0.002                                      # floor of the exploration range, m (K stays finite)
-EX_ROT = (0.02, 0.02)                               # exploration about x, y, rad: keeps the tool upright
+EX_ROT = (0.002, 0.002)                             # exploration about x, y, rad: stiff, so a residual torque
+                                                    # cannot tilt the peg enough to jam it (0.05 mm over 25 mm)
 APPROACH = 0.030                                    # X_i: tip this far above the board top, m
 TRAJ_TIME = 10.0                                    # tau(t) from X^_i to X^_g takes this long, s
 MASS = np.array([20.0, 20.0, 20.0, 0.4, 0.4, 0.4])  # M of Eq. 5: kg and kg m^2 (see README)
