@@ -1,4 +1,7 @@
-"""tacrl.py through subprocess: bad input gives one line and exit code 2; a tiny run writes its JSON."""
+"""tacrl.py: bad input gives one line and exit code 2; the initial policy's row; a tiny training run
+writes every file, survives an interrupt and resumes; a saved policy evaluates; a corrupt
+checkpoint or policy file is a one-line error."""
+import csv
 import json
 import os
 import subprocess
@@ -16,9 +19,18 @@ def run(*args):
 
 @pytest.mark.parametrize("args", [["--task", "screw"], ["--error-mm", "-3"], ["--episodes", "0"],
                                   ["--context", "moon"], ["--bogus"], ["--episodes", "many"],
-                                  ["--video", "out.avi"]])
-def test_bad_arguments_exit_2_with_one_line(args):
-    r = run(*args)
+                                  ["--video", "out.avi"], ["--obs", "smell"], ["--curriculum", "fast"],
+                                  ["--eval", "no/such/policy.pt"], ["--resume", "no/such/run"],
+                                  ["--eval-levels", "5,x"], ["--device", "tpu"], ["--threads", "-1"]])
+def test_bad_arguments_exit_2_with_one_line(args, capsys):
+    import tacrl
+    assert tacrl.main(args) == 2
+    err = capsys.readouterr().err
+    assert err.strip().count("\n") == 0 and err.startswith("tacrl: error:")
+
+
+def test_bad_argument_through_the_shell():
+    r = run("--task", "screw")
     assert r.returncode == 2
     assert r.stderr.strip().count("\n") == 0 and r.stderr.startswith("tacrl: error:")
     assert "Traceback" not in r.stderr
@@ -33,3 +45,58 @@ def test_initial_policy_row_and_json(tmp_path):
     assert row["success_rate"] == 1.0 and row["episodes"] == 1
     assert 5.0 < row["completion_time_s"][0] < 24.0
     assert row["cumulative_reward"][0] > 0
+
+
+TINY = ["--task", "peg", "--error-mm", "1", "--train-episodes", "3", "--warmup", "1", "--updates", "2",
+        "--batch", "8", "--episodes", "1", "--eval-levels", "0"]
+
+
+def test_training_writes_every_file_resumes_and_evaluates(tmp_path, monkeypatch):
+    import tacrl
+    run_dir = str(tmp_path / "run")
+    lines = []
+
+    def interrupt_after_episode_2(msg):
+        lines.append(msg)
+        if msg.startswith("ep    2/3"):
+            raise KeyboardInterrupt      # as Ctrl-C right after episode 2 was saved
+    a = tacrl.parse_args(TINY + ["--run-dir", run_dir])
+    with pytest.raises(KeyboardInterrupt):
+        tacrl.train(a, log=interrupt_after_episode_2)
+    assert sorted(os.listdir(os.path.join(run_dir, "replay"))) == ["ep_000001.npz", "ep_000002.npz"]
+    # starting over in the same directory is refused; --resume continues at episode 3
+    again = run(*TINY, "--run-dir", run_dir)
+    assert again.returncode == 2 and "--resume" in again.stderr
+    r = run("--resume", run_dir)
+    assert r.returncode == 0, r.stderr
+    assert "resumed" in r.stdout and "ep    3/3" in r.stdout and "ep    1/3" not in r.stdout
+    for f in ("config.json", "ckpt.pt", "metrics.csv", "policy.pt", "curves.png", "eval.json"):
+        assert os.path.getsize(os.path.join(run_dir, f)) > 0, f
+    with open(os.path.join(run_dir, "metrics.csv")) as f:
+        rows = list(csv.DictReader(f))
+    assert [int(x["episode"]) for x in rows] == [1, 2, 3]
+    assert int(rows[2]["updates"]) == 2 and int(rows[0]["updates"]) == 0     # none during warm-up
+    ev = json.loads(open(os.path.join(run_dir, "eval.json")).read())
+    assert [row["error_mm"] for row in ev["rows"]] == [0.0] and ev["eval_seed"] != ev["seed"]
+    # the saved policy evaluates like the initial one
+    out = tmp_path / "row.json"
+    r = run("--task", "peg", "--eval", os.path.join(run_dir, "policy.pt"), "--error-mm", "0", "--episodes", "1",
+            "--json", str(out))
+    assert r.returncode == 0, r.stderr
+    assert "TA-MRP peg 0mm" in r.stdout and json.loads(out.read_text())["episodes"] == 1
+    # ... but not for the other task
+    r = run("--task", "gear", "--eval", os.path.join(run_dir, "policy.pt"))
+    assert r.returncode == 2 and "trained for --task peg" in r.stderr
+
+
+def test_corrupt_checkpoint_and_policy_are_one_line_errors(tmp_path):
+    run_dir = tmp_path / "run"
+    run_dir.mkdir()
+    (run_dir / "config.json").write_text(json.dumps({"task": "peg"}))
+    (run_dir / "ckpt.pt").write_bytes(b"not a checkpoint")
+    r = run("--resume", str(run_dir))
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "corrupt" in r.stderr
+    bad = tmp_path / "policy.pt"
+    bad.write_bytes(b"\x80\x02garbage")
+    r = run("--eval", str(bad))
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "cannot load" in r.stderr
