@@ -277,10 +277,10 @@ def set_rng_state(rng, s):
     rng.bit_generator.state = json.loads(s)
 
 
-def save_episode(path, obs, act, rew, term):
-    """One episode of the replay buffer as plain arrays (np.load needs no pickle to read it)."""
-    np.savez(path + ".tmp.npz", act=np.asarray(act, np.float32), rew=np.asarray(rew, np.float32),
-             term=np.asarray(term, np.float32), **{"obs_" + k: np.stack(v) for k, v in obs.items()})
+def save_episode(path, ep):
+    """One episode as ReplayBuffer.add_episode takes it, as plain arrays (np.load needs no pickle)."""
+    np.savez(path + ".tmp.npz", act=ep["act"], rew=ep["rew"], term=ep["term"],
+             **{"obs_" + k: v for k, v in ep["obs"].items()})
     os.replace(path + ".tmp.npz", path)
 
 
@@ -389,9 +389,10 @@ def train(a, log=lambda msg: print(msg, flush=True)):
                 terms.append(term)        # only a real end stops the bootstrap; a time-out does not
                 ret += r
                 done = term or trunc
-            save_episode(os.path.join(replay_dir, f"ep_{ep + 1:06d}.npz"), traj, acts, rews, terms)
-            buf.add_episode({"obs": {k: np.stack(v) for k, v in traj.items()}, "act": np.array(acts),
-                             "rew": np.array(rews), "term": np.array(terms, np.float32)})
+            episode = {"obs": {k: np.stack(v) for k, v in traj.items()}, "act": np.array(acts, np.float32),
+                       "rew": np.array(rews, np.float32), "term": np.array(terms, np.float32)}
+            save_episode(os.path.join(replay_dir, f"ep_{ep + 1:06d}.npz"), episode)
+            buf.add_episode(episode)
             total_steps += len(acts)
             if total_steps > a.buffer:     # keep on disk only what the ring buffer holds
                 trim_episode_files(a.run_dir, a.buffer, ep + 1)
