@@ -137,6 +137,13 @@ class TwinQ(nn.Module):
         return self.q1(za).squeeze(-1), self.q2(za).squeeze(-1)
 
 
+@torch.no_grad()
+def act(enc, actor, obs, deterministic=False, device="cpu"):
+    """One env observation (unbatched dict of arrays) -> action (6,) in [-1, 1]."""
+    o = {k: torch.as_tensor(v[None], device=device) for k, v in obs.items()}
+    return actor(enc(o), deterministic, with_logp=False)[0][0].cpu().numpy()
+
+
 # ---------------------------------------------------------------- replay buffer
 class ReplayBuffer:
     """Ring buffer of transitions (o, a, r, o', terminated). Images are kept as uint8 (6.4 kB
@@ -217,15 +224,9 @@ class SAC:
     def _tensor_obs(self, obs):
         return {k: torch.as_tensor(v, device=self.device) for k, v in obs.items()}
 
-    def _actor_features(self, obs):
-        return (self.enc if self.shared else self.actor_enc)(obs)
-
-    @torch.no_grad()
     def act(self, obs, deterministic=False):
         """One env observation (unbatched dict) -> action (6,) in [-1, 1]."""
-        o = self._tensor_obs({k: v[None] for k, v in obs.items()})
-        a, _ = self.actor(self._actor_features(o), deterministic, with_logp=False)
-        return a[0].cpu().numpy()
+        return act(self.enc if self.shared else self.actor_enc, self.actor, obs, deterministic, self.device)
 
     # -- learning ----------------------------------------------------------------------
     def update(self, batch):

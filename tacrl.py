@@ -256,12 +256,7 @@ def load_policy(path, task, device="cpu"):
         raise ArgError(f"--eval {path!r}: this policy was trained for --task {d['task']}, not {task}")
     enc.eval()
     actor.eval()
-
-    @torch.no_grad()
-    def act(obs):
-        o = {k: torch.as_tensor(v[None], device=device) for k, v in obs.items()}
-        return actor(enc(o), deterministic=True, with_logp=False)[0][0].cpu().numpy()
-    return act
+    return lambda obs: policy.act(enc, actor, obs, deterministic=True, device=device)
 
 
 # ---------------------------------------------------------------- training (Algorithm 1)
