@@ -19,6 +19,7 @@ variants of the ablation (--obs) drop modalities:
     ts-ptv  image + pose history + wrench history   18-d   (the method)
     ts-pt   pose history + wrench history           12-d
     pt      current pose + wrench, an MLP           12-d
+    v       image only (the 'visual' baseline)       6-d
 The fused vector goes through LayerNorm and tanh, then the 2 x 256 heads.
 """
 import copy
@@ -28,7 +29,7 @@ import torch
 import torch.nn as nn
 import torch.nn.functional as F
 
-OBS_KINDS = ("pt", "ts-pt", "ts-ptv")
+OBS_KINDS = ("pt", "ts-pt", "ts-ptv", "v")
 FEAT = 6                      # features per modality
 LOG_STD_MIN, LOG_STD_MAX = -5.0, 2.0
 
@@ -44,14 +45,15 @@ def mlp(n_in, n_out, hidden=(256, 256)):
 # ---------------------------------------------------------------- the multimodal encoder
 class ImageEncoder(nn.Module):
     """3-layer CNN, growing kernels and strides: (B, 1, 80, 80) -> (B, 8, 26, 26) -> (B, 16, 8, 8)
-    -> (B, 32, 1, 1) -> (B, 6). Small on purpose: on 2 CPU cores its backward pass is most of an
-    update (bench/bench_sac.py)."""
+    -> (B, 32, 1, 1) -> (B, 6). The last kernel spans the whole 8 x 8 map, so every pixel of the
+    image reaches the feature (a 6 x 6 kernel left the bottom and right 19 rows unseen). Small on
+    purpose: on 2 CPU cores its backward pass is most of an update (bench/bench_sac.py)."""
 
     def __init__(self, img=80):
         super().__init__()
         self.conv = nn.Sequential(nn.Conv2d(1, 8, 4, stride=3), nn.ReLU(),
                                   nn.Conv2d(8, 16, 5, stride=3), nn.ReLU(),
-                                  nn.Conv2d(16, 32, 6, stride=4), nn.ReLU(), nn.Flatten())
+                                  nn.Conv2d(16, 32, 8, stride=4), nn.ReLU(), nn.Flatten())
         with torch.no_grad():
             n = self.conv(torch.zeros(1, 1, img, img)).shape[1]
         self.fc = nn.Linear(n, FEAT)
@@ -86,18 +88,20 @@ class Encoder(nn.Module):
         self.register_buffer("wrench_scale", torch.as_tensor(np.asarray(wrench_scale), dtype=torch.float32))
         if kind == "pt":
             self.now = mlp(12, 2 * FEAT, (64,))
-        else:
+        elif kind != "v":
             self.series = SeriesEncoder()
-        self.image = ImageEncoder(img) if kind == "ts-ptv" else None
-        self.out_dim = 3 * FEAT if kind == "ts-ptv" else 2 * FEAT
+        self.image = ImageEncoder(img) if kind in ("ts-ptv", "v") else None
+        self.out_dim = {"ts-ptv": 3 * FEAT, "v": FEAT}.get(kind, 2 * FEAT)
         self.norm = nn.LayerNorm(self.out_dim)
 
     def forward(self, obs):
-        pose = obs["pose_hist"] / self.pose_scale          # (B, 32, 6)
-        wrench = obs["wrench_hist"] / self.wrench_scale    # (B, 32, 6)
+        z = []
+        if self.kind != "v":
+            pose = obs["pose_hist"] / self.pose_scale          # (B, 32, 6)
+            wrench = obs["wrench_hist"] / self.wrench_scale    # (B, 32, 6)
         if self.kind == "pt":
             z = [self.now(torch.cat([pose[:, -1], wrench[:, -1]], 1))]
-        else:
+        elif self.kind != "v":
             z = [self.series(torch.cat([pose, wrench], 2))]     # (B, 12): pose and touch features
         if self.image is not None:
             z.append(self.image(obs["image"]))
@@ -146,10 +150,11 @@ def act(enc, actor, obs, deterministic=False, device="cpu"):
 
 # ---------------------------------------------------------------- replay buffer
 class ReplayBuffer:
-    """Ring buffer of transitions (o, a, r, o', terminated). Images are kept as uint8 (6.4 kB
-    each); o' is stored next to o, which doubles the memory but keeps sampling a plain index."""
+    """Ring buffer of transitions (o, a, r, o', terminated, aux). Images are kept as uint8 (6.4 kB
+    each); o' is stored next to o, which doubles the memory but keeps sampling a plain index.
+    aux (aux_dim,) is the auxiliary target of o (SAC's aux loss); aux_dim 0 stores none."""
 
-    def __init__(self, capacity, obs_shapes, act_dim=6):
+    def __init__(self, capacity, obs_shapes, act_dim=6, aux_dim=0):
         self.capacity, self.n, self.i = capacity, 0, 0
         self.obs = {k: np.zeros((capacity, *s), np.uint8 if k == "image" else np.float32)
                     for k, s in obs_shapes.items()}
@@ -157,27 +162,30 @@ class ReplayBuffer:
         self.act = np.zeros((capacity, act_dim), np.float32)
         self.rew = np.zeros(capacity, np.float32)
         self.term = np.zeros(capacity, np.float32)
+        self.aux = np.zeros((capacity, aux_dim), np.float32)
 
     def __len__(self):
         return self.n
 
     def add_episode(self, ep):
-        """ep: {'obs': {k: (T + 1, ...)}, 'act': (T, 6), 'rew': (T,), 'term': (T,)}: the T + 1
-        observations of one episode and its T transitions."""
+        """ep: {'obs': {k: (T + 1, ...)}, 'act': (T, 6), 'rew': (T,), 'term': (T,)} and, when the
+        buffer keeps aux targets, 'aux': (T + 1, aux_dim): the T + 1 observations of one episode
+        and its T transitions."""
         T = len(ep["act"])
-        for t in range(T):
-            j = self.i
-            for k in self.obs:
-                self.obs[k][j] = ep["obs"][k][t]
-                self.next_obs[k][j] = ep["obs"][k][t + 1]
-            self.act[j], self.rew[j], self.term[j] = ep["act"][t], ep["rew"][t], ep["term"][t]
-            self.i = (self.i + 1) % self.capacity
-            self.n = min(self.n + 1, self.capacity)
+        j = (self.i + np.arange(T)) % self.capacity          # the slots this episode takes
+        for k in self.obs:
+            self.obs[k][j] = ep["obs"][k][:T]
+            self.next_obs[k][j] = ep["obs"][k][1:T + 1]
+        self.act[j], self.rew[j], self.term[j] = ep["act"], ep["rew"], ep["term"]
+        if self.aux.shape[1]:
+            self.aux[j] = ep["aux"][:T]
+        self.i = (self.i + T) % self.capacity
+        self.n = min(self.n + T, self.capacity)
 
     def sample(self, batch, rng):
         idx = rng.integers(0, self.n, batch)
         return ({k: v[idx] for k, v in self.obs.items()}, self.act[idx], self.rew[idx],
-                {k: v[idx] for k, v in self.next_obs.items()}, self.term[idx])
+                {k: v[idx] for k, v in self.next_obs.items()}, self.term[idx], self.aux[idx])
 
 
 # ---------------------------------------------------------------- soft actor-critic
@@ -197,10 +205,19 @@ class SAC:
     and DrQ), so the encoder learns from the TD error only and each update encodes o and o' once
     each (o' by the target encoder, also for the next action a'); otherwise the actor has an
     encoder of its own, trained through the actor loss.
+
+    prior_weight: a penalty prior_weight * |mean action|^2 in the actor loss (not in the paper): the
+    residual stays near F_d = 0, the hand-designed policy, unless the critics value leaving it more.
+
+    aux_dim, aux_weight: an auxiliary regression (not in the paper) from the critic's fusion vector
+    to a target the buffer stores with each o, added to the critic loss with this weight. tacrl
+    uses the tip's offset from the true goal, X - X_g, the quantity Eq. 17's reward is computed
+    from: it gives the CNN a direct gradient towards seeing where the hole is. aux_dim 0: none.
     """
 
     def __init__(self, obs_kind="ts-ptv", pose_scale=np.ones(6), wrench_scale=np.ones(6), act_dim=6,
-                 lr=3e-4, gamma=0.99, tau=0.005, init_alpha=0.1, shared_encoder=True, device="cpu"):
+                 lr=3e-4, gamma=0.99, tau=0.005, init_alpha=0.1, shared_encoder=True, aux_dim=0,
+                 aux_weight=1.0, target_entropy=None, prior_weight=0.0, device="cpu"):
         self.device, self.gamma, self.tau, self.shared = torch.device(device), gamma, tau, shared_encoder
         enc = lambda: Encoder(obs_kind, pose_scale, wrench_scale).to(self.device)  # noqa: E731
         self.enc = enc()
@@ -212,10 +229,14 @@ class SAC:
         self.actor_enc = None if shared_encoder else enc()
         self.log_alpha = torch.tensor(np.log(init_alpha), dtype=torch.float32, device=self.device,
                                       requires_grad=True)
-        self.target_entropy = -float(act_dim)
+        self.target_entropy = -float(act_dim) if target_entropy is None else float(target_entropy)
+        self.prior_weight = prior_weight
         self._online_params = list(self.enc.parameters()) + list(self.q.parameters())
         self._targ_params = list(self.enc_targ.parameters()) + list(self.q_targ.parameters())
-        self.q_opt = torch.optim.Adam(self._online_params, lr=lr, foreach=True)
+        self.aux_weight = aux_weight
+        self.aux_head = nn.Linear(self.enc.out_dim, aux_dim).to(self.device) if aux_dim else None
+        aux_params = list(self.aux_head.parameters()) if aux_dim else []
+        self.q_opt = torch.optim.Adam(self._online_params + aux_params, lr=lr, foreach=True)
         actor_params = list(self.actor.parameters()) + ([] if shared_encoder else list(self.actor_enc.parameters()))
         self.pi_opt = torch.optim.Adam(actor_params, lr=lr, foreach=True)
         self.alpha_opt = torch.optim.Adam([self.log_alpha], lr=lr)
@@ -231,9 +252,9 @@ class SAC:
     # -- learning ----------------------------------------------------------------------
     def update(self, batch):
         """One gradient step on a batch from ReplayBuffer.sample; returns the losses."""
-        o, a, r, o2, term = batch
+        o, a, r, o2, term, aux = batch
         o, o2 = self._tensor_obs(o), self._tensor_obs(o2)
-        a, r, term = (torch.as_tensor(x, device=self.device) for x in (a, r, term))
+        a, r, term, aux = (torch.as_tensor(x, device=self.device) for x in (a, r, term, aux))
         alpha = self.log_alpha.exp().detach()
         with torch.no_grad():
             # o' is encoded once, by the target encoder, for both a' and Q' (shared encoder)
@@ -244,11 +265,19 @@ class SAC:
         z = self.enc(o)
         q1, q2 = self.q(z, a)
         q_loss = F.mse_loss(q1, y) + F.mse_loss(q2, y)
+        aux_loss = F.mse_loss(self.aux_head(z), aux) if self.aux_head is not None else torch.zeros(())
         self.q_opt.zero_grad(set_to_none=True)
-        q_loss.backward()
+        (q_loss + self.aux_weight * aux_loss).backward()
         self.q_opt.step()
 
-        # actor: maximise min Q(s, pi(s)) - alpha log pi; the critic is only read here
+        out = {"q_loss": q_loss.item(), "aux_loss": aux_loss.item(), "alpha": alpha.item(),
+               **self._update_actor(o, z, alpha)}
+        with torch.no_grad():   # Polyak averaging of the targets: p_targ <- (1 - tau) p_targ + tau p
+            torch._foreach_lerp_(self._targ_params, self._online_params, self.tau)
+        return out
+
+    def _update_actor(self, o, z, alpha):
+        """Actor: maximise min Q(s, pi(s)) - alpha log pi, the critic only read; then the temperature."""
         z_pi = z.detach() if self.shared else self.actor_enc(o)
         a_pi, logp = self.actor(z_pi)
         for p in self.q.parameters():
@@ -257,6 +286,9 @@ class SAC:
         for p in self.q.parameters():
             p.requires_grad_(True)
         pi_loss = (alpha * logp - torch.min(q1_pi, q2_pi)).mean()
+        if self.prior_weight:   # residual prior: the mean action pays prior_weight * |a|^2 for leaving F_d = 0
+            a_mean, _ = self.actor(z_pi, deterministic=True, with_logp=False)
+            pi_loss = pi_loss + self.prior_weight * (a_mean ** 2).sum(-1).mean()
         self.pi_opt.zero_grad(set_to_none=True)
         pi_loss.backward()
         self.pi_opt.step()
@@ -266,10 +298,7 @@ class SAC:
         alpha_loss.backward()
         self.alpha_opt.step()
 
-        with torch.no_grad():   # Polyak averaging of the targets: p_targ <- (1 - tau) p_targ + tau p
-            torch._foreach_lerp_(self._targ_params, self._online_params, self.tau)
-        return {"q_loss": q_loss.item(), "pi_loss": pi_loss.item(), "alpha": alpha.item(),
-                "entropy": -logp.mean().item()}
+        return {"pi_loss": pi_loss.item(), "entropy": -logp.mean().item()}
 
     # -- checkpoints -------------------------------------------------------------------
     def modules(self):
@@ -277,6 +306,8 @@ class SAC:
              "q_opt": self.q_opt, "pi_opt": self.pi_opt, "alpha_opt": self.alpha_opt}
         if self.actor_enc is not None:
             m["actor_enc"] = self.actor_enc
+        if self.aux_head is not None:
+            m["aux_head"] = self.aux_head
         return m
 
     def state_dict(self):
