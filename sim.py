@@ -707,7 +707,9 @@ class AssemblyEnv:
 
     def _info(self, x, success):
         depth = float(self.x_i[0][2] - APPROACH - x[0][2])   # tip below the board top, m
-        return {"success": success, "depth": depth, "t": self.t, "f_tool": self.f_tool.copy(),
+        # X - X_g (x, y, z in m, rotation about z in rad): what Eq. 17 measures, known in training only
+        offset = ctl.pose_error(x, self.x_g)[[0, 1, 2, 5]]
+        return {"success": success, "depth": depth, "t": self.t, "f_tool": self.f_tool.copy(), "goal_offset": offset,
                 "f_world": to_world(x[1], self.f_tool),
                 "e_r": self.e_r, "ex_r": self.ex_r, "error": self.error.copy(), "roi": self.roi}
 

@@ -8,20 +8,27 @@ by SAC, the error range growing with the adaptive curriculum of Eq. 16 (curricul
     python tacrl.py --resume runs/peg-ts-ptv-adaptive-s0
     python tacrl.py --task peg --eval runs/peg-ts-ptv-adaptive-s0/policy.pt --error-mm 20 --episodes 20
 
-Evaluation of the hand-designed policy alone (F_d = 0):
+Evaluation of the hand-designed policy alone (F_d = 0), and of the classical two-step baseline:
 
     python tacrl.py --task peg --eval initial --error-mm 0 --episodes 20
     python tacrl.py --task gear --eval initial --error-mm 20 --episodes 20 --json gear20.json
     python tacrl.py --task peg --eval initial --context loc-1 --video peg.mp4
+    python tacrl.py --task peg --eval two-step --error-mm 20
+
+The experiments (issue 4): baselines `--vanilla` and `--obs v`, ablations `--obs`, `--curriculum`,
+`--roi`; `--seeds 0,1,2` trains one run a seed in parallel; `--report "runs/*"` writes
+docs/RESULTS.md (Tables 1 and 2, figures) from the run directories.
 
 A run directory holds config.json, ckpt.pt (networks, optimisers, curriculum, RNG states; every
 episode), replay/ (one .npz per episode: the replay buffer), metrics.csv, and at the end policy.pt,
 curves.png and eval.json.
 """
 import argparse
+import collections
 import csv
 import json
 import os
+import re
 import sys
 import time
 from dataclasses import asdict, dataclass, fields
@@ -34,7 +41,7 @@ import sim
 @dataclass
 class Args:
     task: str = "peg"            # 'peg' (0.1 mm clearance) or 'gear' (Sec. 5.1.1)
-    eval: str = ""               # evaluate instead of training: 'initial' (F_d = 0) or a policy.pt
+    eval: str = ""               # evaluate instead of training: 'initial' (F_d = 0), 'two-step' or a policy.pt
     error_mm: float = 20.0       # evaluation: E_r (Eq. 13-15); training: the final range of the curriculum
     episodes: int = 20           # evaluation episodes (the paper: 20 test trials)
     context: str = "train"       # board location / background (sim.CONTEXTS)
@@ -50,37 +57,58 @@ class Args:
     curriculum: str = "adaptive"  # error curriculum (curriculum.KINDS)
     updates: int = 200           # SAC gradient steps after each episode (the paper: 200)
     warmup: int = 20             # episodes of uniform random actions before the first update (authors' loop: 20)
+    target_entropy: float = -6.0  # SAC's entropy target (the usual -|A| = -6)
+    prior_weight: float = 0.0    # actor pays this * |mean action|^2 for leaving F_d = 0 (not in the paper; 0: off)
     batch: int = 64              # SAC batch size
     buffer: int = 50000          # replay capacity, transitions
     lr: float = 3e-4             # Adam step size of actor, critics and temperature
     gamma: float = 0.95          # discount (0.99 let the critics thrash: see README)
+    aux_weight: float = 0.0      # weight of an auxiliary X - X_g regression (not in the paper; 0: off)
+    vanilla: bool = False        # the 'vanilla' baseline: no trajectory guidance, the residual acts alone
     device: str = "auto"         # auto, cpu or cuda
     threads: int = 0             # torch CPU threads (0: torch's default, one per core)
     eval_levels: str = "5,10,15,20"  # error ranges (mm) of the evaluation after training (Table 2)
     run_dir: str = ""            # where the run lives; default runs/<task>-<obs>-<curriculum>-s<seed>
+    seeds: str = ""              # e.g. 0,1,2: independent training runs in parallel processes, one a seed
+    report: str = ""             # regenerate docs/RESULTS.md from these run dirs (comma-separated globs)
+    report_dir: str = "docs"     # where --report writes RESULTS.md and its figures
     resume: str = ""             # continue the run in this directory
 
 
 HELP = {
-    "task": "peg or gear", "eval": "'initial' (the hand-designed policy alone) or a policy.pt to evaluate; "
+    "task": "peg or gear", "eval": "'initial' (the hand-designed policy alone), 'two-step' (the classical "
+    "baseline: visual servoing, spiral search, insertion) or a policy.pt to evaluate; "
     "without it, train", "error_mm": "error range E_r in mm (0..30): evaluated, or the curriculum's final range",
     "episodes": "number of evaluation episodes",
     "context": f"one of {', '.join(sim.CONTEXTS)}", "roi": f"task or one of {', '.join(sim.ROI_PRESETS)}",
     "clearance_mm": "diametral clearance of the peg / gear bore, mm", "seed": "random seed",
     "json": "write the evaluation row to this JSON file", "video": "record the first evaluation episode to this .mp4",
     "gui": "open the PyBullet GUI", "train_episodes": "training episodes",
-    "obs": "observations: pt, ts-pt or ts-ptv", "curriculum": "adaptive, none, g2-c30, g2-c10 or g2-c2",
+    "obs": "observations: pt, ts-pt, ts-ptv, or v (image only: the visual baseline)", "curriculum": "adaptive, none, g2-c30, g2-c10 or g2-c2",
     "updates": "gradient steps after each episode",
-    "warmup": "episodes of uniform random actions before the first update", "threads": "torch CPU threads, 0 = all cores",
+    "warmup": "episodes of uniform random actions before the first update",
+    "prior_weight": "weight of the actor's penalty on |mean action|^2, which keeps the residual near F_d = 0 "
+    "(the hand-designed policy) unless the critics value more (0: the paper's SAC)",
+    "target_entropy": "SAC's target entropy of the 6-D action (-6 is the usual -|A|; lower is less noisy)", "threads": "torch CPU threads, 0 = all cores",
     "batch": "SAC batch size", "buffer": "replay capacity (transitions)", "lr": "learning rate",
-    "gamma": "discount factor", "device": "auto, cpu or cuda", "run_dir": "run directory",
+    "gamma": "discount factor", "vanilla": "train the 'vanilla' baseline: SAC without the base policy's "
+    "trajectory (the residual acts alone through the same compliance controller)", "aux_weight": "weight of the auxiliary loss that regresses X - X_g "
+    "from the critic's features (0: the paper's plain SAC)", "device": "auto, cpu or cuda", "run_dir": "run directory",
     "eval_levels": "comma-separated error ranges (mm) evaluated after training",
+    "report": "regenerate docs/RESULTS.md and its figures from these run directories (comma-separated glob "
+    "patterns, e.g. 'runs/*'); evaluates what the report needs and has not got yet",
+    "report_dir": "where --report writes RESULTS.md and its figures",
+    "seeds": "comma-separated seeds: one training run each, in parallel processes up to the number of cores "
+    "(run dirs get -s<seed>; each logs to its train.log)",
     "resume": "run directory to continue (its config.json wins over other flags)",
 }
 
 
 class ArgError(Exception):
     pass
+
+
+BASELINES = ("initial", "two-step")      # --eval names that are not policy files
 
 
 def parse_args(argv=None):
@@ -107,8 +135,10 @@ def check_args(a):
     import policy
     if a.task not in ("peg", "gear"):
         raise ArgError(f"--task must be peg or gear, not {a.task!r}")
-    if a.eval and a.eval != "initial" and not os.path.isfile(a.eval):
-        raise ArgError(f"--eval must be 'initial' or an existing policy.pt file, not {a.eval!r}")
+    if a.eval and a.eval not in BASELINES and not os.path.isfile(a.eval):
+        raise ArgError(f"--eval must be {', '.join(BASELINES)} or an existing policy.pt file, not {a.eval!r}")
+    if a.eval == "two-step" and a.task != "peg":
+        raise ArgError("--eval two-step is the peg-in-hole baseline (Table 1); it has no gear version")
     if not 0.0 <= a.error_mm <= 30.0:
         raise ArgError(f"--error-mm must be within 0..30, not {a.error_mm}")
     for name in ("episodes", "train_episodes", "batch", "buffer"):
@@ -119,6 +149,8 @@ def check_args(a):
             raise ArgError(f"--{name} must be at least 0, not {getattr(a, name)}")
     if not (0.0 < a.lr < 1.0 and 0.0 < a.gamma < 1.0):
         raise ArgError(f"--lr and --gamma must be within (0, 1), not {a.lr} and {a.gamma}")
+    if a.aux_weight < 0 or a.prior_weight < 0:
+        raise ArgError(f"--aux-weight and --prior-weight must be at least 0, not {a.aux_weight} and {a.prior_weight}")
     if a.context not in sim.CONTEXTS:
         raise ArgError(f"--context must be one of {', '.join(sim.CONTEXTS)}, not {a.context!r}")
     if a.roi != "task" and a.roi not in sim.ROI_PRESETS:
@@ -143,8 +175,15 @@ def check_args(a):
         import torch
         if not torch.cuda.is_available():
             raise ArgError("--device cuda: no CUDA device is available here (use auto or cpu)")
+    if a.seeds:
+        try:
+            seeds = [int(x) for x in a.seeds.split(",")]
+        except ValueError:
+            seeds = []
+        if not seeds or len(set(seeds)) != len(seeds) or a.eval or a.resume:
+            raise ArgError(f"--seeds must be distinct comma-separated integers, for training only, not {a.seeds!r}")
     if not a.run_dir:
-        a.run_dir = os.path.join("runs", f"{a.task}-{a.obs}-{a.curriculum}-s{a.seed}")
+        a.run_dir = os.path.join("runs", f"{a.task}-{'vanilla-' if a.vanilla else ''}{a.obs}-{a.curriculum}-s{a.seed}")
 
 
 def load_config(run_dir):
@@ -175,6 +214,8 @@ def evaluate(env, act, episodes, seed, video=None, log=print):
     t0 = time.time()
     for ep in range(episodes):
         obs, info = env.reset(seed=seed * 100003 + ep)
+        if hasattr(act, "reset"):            # a policy with memory (the two-step baseline)
+            act.reset()
         ret, peak, done = 0.0, np.zeros(3), False
         while not done:
             obs, r, term, trunc, info = env.step(act(obs))
@@ -206,8 +247,134 @@ def format_row(name, row):
             f"{ms('contact_force_y_N'):>14}  {ms('contact_force_z_N'):>14}  {ms('cumulative_reward', '{:.1f}'):>16}")
 
 
+# ---------------------------------------------------------------- the two-step baseline (Sec. 5.1.2)
+def hole_blob(img, dark=20):
+    """The hole in the peg board's ROI image: the largest blob darker than `dark` (the hole is black,
+    the board dark gray). -> (u, v, r) in pixels (centroid and the radius of a disc of equal area),
+    or None when no hole is in view."""
+    import cv2
+    n, _, stats, cents = cv2.connectedComponentsWithStats((img < dark).astype(np.uint8))
+    if n < 2:
+        return None
+    i = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
+    return cents[i][0], cents[i][1], np.sqrt(stats[i, cv2.CC_STAT_AREA] / np.pi)
+
+
+def blob_features(b, k):
+    """Regression features of a hole blob (u, v, r) seen at servo step k (the tool is lower each step)."""
+    u, v, r = (float(x) / sim.IMG for x in b)
+    f = np.array([1.0, u, v, r, u * u, v * v, u * v, u * r, v * r])
+    return np.concatenate([f, k / 10.0 * f[:4]])
+
+
+class TwoStep:
+    """The classical two-step approach: (1) visual servoing on the eye-in-hand image to the hole,
+    (2) a spiral search with contact-state detection, then insertion. No learning; it acts through
+    the same hybrid controller (Eq. 6) as our policy, by choosing F_d.
+
+    Calibration (`calibrate`) is what a hand-designed pipeline does once: with known errors (seeds
+    apart from evaluation) it runs the servo steps with random lateral forces and fits, by least
+    squares, the tool's lateral offset from the hole (x, y) from the hole's blob in the image
+    (centroid, radius, their squares and products, and the step: the blob also moves with the
+    height, which falls along tau(t), and with the unknown height and yaw errors). Phases, per step:
+      servo    (the first SERVO steps) the image gives the tool's offset o from the hole, the tool's
+               pose its displacement d from the trajectory, so the error is e = o - d; average it and
+               set the lateral F_d = K e, which moves the tool by -e (free space: X = X_d - F_d/K)
+      descend  hold that F_d while tau(t) lowers the peg, until the wrist reads CONTACT N upward
+      spiral   add an Archimedean spiral (PITCH between turns, STEP of arc a step; commanded
+               SPIRAL_GAIN times larger, so the force beats the friction of the pressed peg) to the lateral
+               target and press PRESS x 5 N, until the tip drops DROP below where contact began
+      insert   set the lateral F_d to hold the tool where it is (no spring force pressing the peg
+               against the wall of the 0.1 mm hole) and press with the full 5 N
+    The constants were set by hand on calibration seeds (seed 500 +), never on evaluation seeds."""
+    SERVO = 8
+    CONTACT, PRESS, DROP = 0.5, 0.0, 0.0008
+    PITCH, STEP, SPIRAL_GAIN = 0.0006, 0.0004, 3.0
+
+    def __init__(self, env):
+        self.env, self.coef, self.bias = env, None, np.zeros(2)
+
+    def calibrate(self, episodes=100, seed=500):
+        """Fit the image -> lateral offset map; returns its median error on the fitted samples, m."""
+        env, feats, offsets = self.env, [], []
+        rng = np.random.default_rng(seed)
+        for _ in range(episodes):
+            e = rng.uniform(-1, 1, 4) * np.array([sim.E_R_FINAL] * 3 + [sim.E_ROT_FINAL])
+            obs, info = env.reset(options={"error": e})
+            for k in range(self.SERVO):
+                b = hole_blob(obs["image"])
+                if b is not None:
+                    feats.append(blob_features(b, k))
+                    offsets.append(info["goal_offset"][:2])           # X - X_g, the truth, x and y
+                obs, _, _, _, info = env.step(np.r_[rng.uniform(-0.7, 0.7, 2), np.zeros(4)])
+        feats, offsets = np.array(feats), np.array(offsets)
+        self.coef = np.linalg.lstsq(feats, offsets, rcond=None)[0]            # (13, 2)
+        # second pass: run the servo itself on more calibration errors; its mean offset at the end is
+        # a bias of the fit near the hole (where the servo ends), which we then subtract
+        self.bias, ends = np.zeros(2), []
+        for _ in range(episodes // 2):
+            e = rng.uniform(-1, 1, 4) * np.array([sim.E_R_FINAL] * 3 + [sim.E_ROT_FINAL])
+            obs, info = env.reset(options={"error": e})
+            self.reset()
+            for k in range(self.SERVO + 4):
+                obs, _, _, _, info = env.step(self(obs))
+            ends.append(info["goal_offset"][:2])
+        self.bias = np.mean(ends, 0)
+        return float(np.median(np.abs(feats @ self.coef - offsets)))
+
+    def _displacement(self, obs):
+        """The tool's lateral displacement from the trajectory (m, world x and y), from its pose
+        relative to X^_g (the estimate, which the robot knows)."""
+        return (self.env.x_g_hat[1] @ obs["pose_hist"][-1, :3])[:2]
+
+    def reset(self):
+        self.k, self.phase = 0, "servo"
+        self.a = np.zeros(6)
+        self.z_contact, self.theta = None, 0.0
+        self.lateral, self.estimates = np.zeros(2), []
+
+    def __call__(self, obs):
+        w = self.env.policy.w[:2]                        # W (x, y): F_d = K d needs a = d / W
+        z = float(obs["pose_hist"][-1, 2])               # tip depth along X^_g's z (down), m
+        fz = -float(obs["wrench_hist"][-1, 2])           # upward contact force, N (tool z points down)
+        if self.phase == "servo":
+            b = hole_blob(obs["image"])
+            if b is not None:
+                self.estimates.append(blob_features(b, self.k) @ self.coef - self._displacement(obs))
+                self.lateral = np.mean(self.estimates, 0) / w
+            self.k += 1
+            if self.k >= self.SERVO:
+                self.phase = "descend"
+        elif self.phase == "descend" and fz > self.CONTACT:
+            self.phase, self.z_contact = "spiral", z
+        elif self.phase == "spiral":
+            if z > self.z_contact + self.DROP:    # in the hole: no lateral spring force from here on
+                self.phase = "insert"
+                self.lateral = -self._displacement(obs) / w
+            else:
+                rho = max(self.PITCH * self.theta / (2 * np.pi), self.STEP)
+                self.theta += self.STEP / rho
+        self.a[:] = 0.0
+        spiral = np.zeros(2)
+        if self.phase == "spiral":
+            rho = self.PITCH * self.theta / (2 * np.pi)
+            spiral = rho * np.array([np.cos(self.theta), np.sin(self.theta)])
+        if self.phase == "insert":
+            self.a[:2] = np.clip(self.lateral, -1, 1)
+        else:
+            self.a[:2] = np.clip(self.lateral + (self.SPIRAL_GAIN * spiral + self.bias) / w, -1, 1)
+        self.a[2] = {"spiral": self.PRESS, "insert": 1.0}.get(self.phase, 0.0)
+        return self.a.copy()
+
+
 # ---------------------------------------------------------------- policies and checkpoints
 POSE_SCALE = [sim.E_R_FINAL] * 3 + [sim.E_ROT_FINAL] * 3    # the encoder divides the pose history by these
+# The aux target: the lateral part of X - X_g (x, y in m, yaw in rad) over these. Lateral and yaw
+# only: the height is mostly known from the pose history and would dominate the loss (55 mm to 0
+# in every episode, against +-E_r laterally). 5 mm and 0.025 rad units keep the small errors of the
+# curriculum's first levels visible in the loss.
+AUX_SCALE = np.array([0.005, 0.005, 0.025])
+AUX_DIMS = [0, 1, 3]                          # of info['goal_offset'] (x, y, z, yaw)
 EVAL_SEED = 1000                                               # eval seeds: EVAL_SEED + --seed, never a training seed
 
 
@@ -218,7 +385,9 @@ def pick_device(name):
 
 def make_sac(a, device):
     import policy
-    return policy.SAC(a.obs, POSE_SCALE, sim.F_MAX6, lr=a.lr, gamma=a.gamma, device=device)
+    return policy.SAC(a.obs, POSE_SCALE, sim.F_MAX6, lr=a.lr, gamma=a.gamma, device=device,
+                      aux_dim=len(AUX_SCALE) if a.aux_weight > 0 else 0, aux_weight=a.aux_weight,
+                      target_entropy=a.target_entropy, prior_weight=a.prior_weight)
 
 
 def save_atomic(obj, path):
@@ -230,7 +399,7 @@ def save_atomic(obj, path):
 
 def save_policy(path, sac, a):
     """What evaluation needs: the encoder and the actor (the critics stay in ckpt.pt)."""
-    d = {"format": "tacrl-policy-1", "task": a.task, "obs": a.obs, "roi": a.roi,
+    d = {"format": "tacrl-policy-1", "task": a.task, "obs": a.obs, "roi": a.roi, "vanilla": a.vanilla,
          "enc": sac.enc.state_dict(), "actor": sac.actor.state_dict()}
     if sac.actor_enc is not None:
         d["actor_enc"] = sac.actor_enc.state_dict()
@@ -256,12 +425,15 @@ def load_policy(path, task, device="cpu"):
         raise ArgError(f"--eval {path!r}: this policy was trained for --task {d['task']}, not {task}")
     enc.eval()
     actor.eval()
-    return lambda obs: policy.act(enc, actor, obs, deterministic=True, device=device)
+    act = lambda obs: policy.act(enc, actor, obs, deterministic=True, device=device)   # noqa: E731
+    act.vanilla = bool(d.get("vanilla", False))    # evaluate it the way it was trained
+    act.enc, act.actor = enc, actor                # for plots that look inside (behaviour_plot)
+    return act
 
 
 # ---------------------------------------------------------------- training (Algorithm 1)
 METRICS = ["episode", "return", "success", "sr15", "e_r_mm", "ex_r_mm", "delta", "steps", "total_steps",
-           "updates", "q_loss", "pi_loss", "alpha", "entropy", "env_s", "update_s", "elapsed_s"]
+           "updates", "q_loss", "pi_loss", "alpha", "entropy", "aux_loss", "env_s", "update_s", "elapsed_s"]
 
 
 def rng_state(rng):
@@ -274,7 +446,7 @@ def set_rng_state(rng, s):
 
 def save_episode(path, ep):
     """One episode as ReplayBuffer.add_episode takes it, as plain arrays (np.load needs no pickle)."""
-    np.savez(path + ".tmp.npz", act=ep["act"], rew=ep["rew"], term=ep["term"],
+    np.savez(path + ".tmp.npz", act=ep["act"], rew=ep["rew"], term=ep["term"], aux=ep["aux"],
              **{"obs_" + k: v for k, v in ep["obs"].items()})
     os.replace(path + ".tmp.npz", path)
 
@@ -282,7 +454,7 @@ def save_episode(path, ep):
 def load_episode(path):
     with np.load(path, allow_pickle=False) as z:
         return {"obs": {k[4:]: z[k] for k in z.files if k.startswith("obs_")},
-                "act": z["act"], "rew": z["rew"], "term": z["term"]}
+                "act": z["act"], "rew": z["rew"], "term": z["term"], "aux": z["aux"]}
 
 
 def episode_files(run_dir):
@@ -326,12 +498,14 @@ def train(a, log=lambda msg: print(msg, flush=True)):
     torch.manual_seed(a.seed)
     sac = make_sac(a, device)
     curr = curriculum.Curriculum(a.curriculum, final=a.error_mm / 1000)
-    env = sim.AssemblyEnv(a.task, a.context, roi=a.roi, clearance=a.clearance_mm / 1000, gui=a.gui)
+    env = sim.AssemblyEnv(a.task, a.context, roi=a.roi, clearance=a.clearance_mm / 1000, gui=a.gui,
+                          use_base_policy=not a.vanilla)
     env.rng = np.random.default_rng(a.seed)
     sample_rng = np.random.default_rng(a.seed + 1)
     shapes = {"image": (sim.IMG, sim.IMG), "pose_hist": (sim.HIST, 6), "wrench_hist": (sim.HIST, 6)}
-    buf = policy.ReplayBuffer(a.buffer, shapes)
+    buf = policy.ReplayBuffer(a.buffer, shapes, aux_dim=sac.aux_head.out_features if sac.aux_head else 0)
     start, total_steps, elapsed0 = 0, 0, 0.0
+    on_disk = collections.deque()        # (replay file, transitions) the buffer holds, oldest first
     metrics_path = os.path.join(a.run_dir, "metrics.csv")
     if a.resume and os.path.exists(ckpt_path):
         try:
@@ -346,7 +520,9 @@ def train(a, log=lambda msg: print(msg, flush=True)):
             raise ArgError(f"--resume {a.run_dir!r}: ckpt.pt is corrupt or does not match this run's "
                            f"config ({type(e).__name__}: {str(e).splitlines()[0][:120]})")
         for f in trim_episode_files(a.run_dir, a.buffer, start):
-            buf.add_episode(load_episode(f))
+            ep_data = load_episode(f)
+            buf.add_episode(ep_data)
+            on_disk.append((f, len(ep_data["act"])))
         with open(metrics_path) as f:
             rows = [r for r in csv.DictReader(f) if int(r["episode"]) <= start]
         with open(metrics_path, "w", newline="") as f:
@@ -370,7 +546,7 @@ def train(a, log=lambda msg: print(msg, flush=True)):
             e_r, ex_r = curr.ranges()
             env.set_ranges(e_r, ex_r)
             obs, info = env.reset()
-            traj = {k: [v] for k, v in obs.items()}
+            traj, aux = {k: [v] for k, v in obs.items()}, [info["goal_offset"][AUX_DIMS] / AUX_SCALE]
             acts, rews, terms, done, ret = [], [], [], False, 0.0
             while not done:
                 # warm-up: uniform actions (Spinning Up's start steps), so that the critics have
@@ -379,18 +555,24 @@ def train(a, log=lambda msg: print(msg, flush=True)):
                 obs, r, term, trunc, info = env.step(act)
                 for k, v in obs.items():
                     traj[k].append(v)
+                aux.append(info["goal_offset"][AUX_DIMS] / AUX_SCALE)
                 acts.append(act)
                 rews.append(r)
                 terms.append(term)        # only a real end stops the bootstrap; a time-out does not
                 ret += r
                 done = term or trunc
             episode = {"obs": {k: np.stack(v) for k, v in traj.items()}, "act": np.array(acts, np.float32),
-                       "rew": np.array(rews, np.float32), "term": np.array(terms, np.float32)}
-            save_episode(os.path.join(replay_dir, f"ep_{ep + 1:06d}.npz"), episode)
+                       "rew": np.array(rews, np.float32), "term": np.array(terms, np.float32),
+                       "aux": np.array(aux, np.float32)}
+            path = os.path.join(replay_dir, f"ep_{ep + 1:06d}.npz")
+            save_episode(path, episode)
             buf.add_episode(episode)
             total_steps += len(acts)
-            if total_steps > a.buffer:     # keep on disk only what the ring buffer holds
-                trim_episode_files(a.run_dir, a.buffer, ep + 1)
+            on_disk.append((path, len(acts)))
+            # keep on disk only what the ring buffer holds: drop the oldest file while the rest still
+            # fill it (the same rule as trim_episode_files, without reopening every file)
+            while sum(n for _, n in on_disk) - on_disk[0][1] >= a.buffer:
+                os.remove(on_disk.popleft()[0])
             t_env = time.time() - t0
             # -- update the policy with SAC (line 10)
             t0, losses = time.time(), []
@@ -403,7 +585,7 @@ def train(a, log=lambda msg: print(msg, flush=True)):
             curr.update(success)
             elapsed = time.time() - t_start
             mean = {k: float(np.mean([l[k] for l in losses])) if losses else float("nan")
-                    for k in ("q_loss", "pi_loss", "alpha", "entropy")}
+                    for k in ("q_loss", "pi_loss", "alpha", "entropy", "aux_loss")}
             row = {"episode": ep + 1, "return": round(ret, 3), "success": int(success), "sr15": round(curr.success_rate, 3),
                    "e_r_mm": round(e_r * 1000, 3), "ex_r_mm": round(max(ex_r, sim.EX_MIN) * 1000, 3),
                    "delta": round(curr.delta, 4), "steps": len(acts), "total_steps": total_steps, "updates": len(losses),
@@ -471,15 +653,327 @@ def plot_curves(metrics_path, out, title=""):
     plt.close(fig)
 
 
+# ---------------------------------------------------------------- the results report (issue 4)
+# The paper's numbers, next to which ours stand. Table 1: simulated peg, 20 trials after 200 episodes.
+PAPER_TABLE1 = {"two-step": "0.533, 19.00 +- 5.75, 13.21 / 13.22 / 9.78",
+                "vanilla": "did not learn", "visual": "did not learn",
+                "ours": "1.00, 2.41 +- 1.93, 12.14 / 6.92 / 3.23"}
+# Table 2 (real robot), success rate at 5/10/15/20 mm: the rows that the paper's layout pins down
+PAPER_TABLE2 = {("peg", "train"): "1.00 / 1.00 / 1.00 / 0.80", ("peg", "loc-1"): "1.00 / 1.00 / 0.90 / 0.75",
+                ("gear", "train"): "1.00 / 1.00 / 0.95 / 0.70"}
+UNSEEN = ("loc-1", "bg-objects")           # our stand-ins for the paper's 'unseen 1' (location), 'unseen 2' (background)
+LEVELS = (5.0, 10.0, 15.0, 20.0)
+
+
+def load_run(d):
+    with open(os.path.join(d, "config.json")) as f:
+        cfg = json.load(f)
+    with open(os.path.join(d, "metrics.csv")) as f:
+        rows = list(csv.DictReader(f))
+    ev = None
+    if os.path.exists(os.path.join(d, "eval.json")):
+        with open(os.path.join(d, "eval.json")) as f:
+            ev = json.load(f)
+    m = {k: np.array([float(r[k]) for r in rows]) for k in ("episode", "return", "sr15", "e_r_mm", "ex_r_mm",
+                                                             "elapsed_s")}
+    return {"dir": d, "cfg": cfg, "m": m, "eval": ev}
+
+
+def method_of(cfg):
+    """'ours', 'vanilla', 'visual' or the ablation variant a run trained, plus any learning setting
+    that differs from the defaults (so that runs are grouped only with their like)."""
+    if cfg.get("vanilla"):
+        name = "vanilla"
+    elif cfg["obs"] == "v":
+        name = "visual"
+    elif (cfg["obs"], cfg["curriculum"], cfg["roi"], cfg["error_mm"]) == ("ts-ptv", "adaptive", "task", 20.0):
+        name = "ours"
+    else:
+        name = f"{cfg['obs']}, {cfg['curriculum']} to {cfg['error_mm']:g} mm, roi {cfg['roi']}"
+    default = Args()
+    changed = [f"{k} {cfg[k]}" for k in ("updates", "warmup", "batch", "lr", "gamma", "aux_weight",
+                                         "prior_weight", "target_entropy", "train_episodes")
+               if k in cfg and cfg[k] != getattr(default, k)]
+    return name + (f" ({', '.join(changed)})" if changed else "")
+
+
+def bootstrap_band(curves, n=1000, seed=0):
+    """curves: seeds x episodes -> mean and the 95% bootstrap interval of the mean over seeds."""
+    c = np.array([x[:min(map(len, curves))] for x in curves])
+    rng = np.random.default_rng(seed)
+    boots = c[rng.integers(0, len(c), (n, len(c)))].mean(1)
+    return c.mean(0), np.percentile(boots, 2.5, 0), np.percentile(boots, 97.5, 0)
+
+
+def plot_groups(groups, key, ylabel, out, title):
+    """One line (mean over seeds) and band (95% bootstrap) per group of runs, against episode."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(6.4, 3.6))
+    for name, runs in groups.items():
+        mean, lo, hi = bootstrap_band([r["m"][key] for r in runs])
+        ep = np.arange(1, len(mean) + 1)
+        seeds = sorted({r["cfg"]["seed"] for r in runs})
+        line, = ax.plot(ep, mean, label=f"{name} (seed{'s' * (len(seeds) > 1)} {', '.join(map(str, seeds))})")
+        if len(runs) > 1:
+            ax.fill_between(ep, lo, hi, alpha=0.2, color=line.get_color())
+    ax.set_xlabel("episode")
+    ax.set_ylabel(ylabel)
+    ax.set_title(title, fontsize=10)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+
+
+def eval_cached(run, context, levels=LEVELS, episodes=20, log=print):
+    """Table-2 rows of a run's policy in `context`, evaluated once and kept in the run dir."""
+    path = os.path.join(run["dir"], f"eval-{context}.json")
+    if os.path.exists(path):
+        with open(path) as f:
+            rows = json.load(f)
+        if [r["error_mm"] for r in rows] == list(levels) and rows[0]["episodes"] == episodes:
+            return rows
+    cfg = run["cfg"]
+    act = load_policy(os.path.join(run["dir"], "policy.pt"), cfg["task"])
+    env = sim.AssemblyEnv(cfg["task"], context, roi=cfg["roi"], clearance=cfg["clearance_mm"] / 1000,
+                          use_base_policy=not cfg.get("vanilla", False))
+    rows = []
+    try:
+        for mm in levels:
+            log(f"  evaluating {run['dir']} in {context} at {mm:g} mm")
+            env.set_ranges(mm / 1000)
+            row = evaluate(env, act, episodes, EVAL_SEED + cfg["seed"], log=lambda *_: None)
+            rows.append({**row, "error_mm": mm})
+    finally:
+        env.close()
+    with open(path, "w") as f:
+        json.dump(rows, f, indent=2)
+    return rows
+
+
+def cell(row, k, f="{:.2f}"):
+    v = row.get(k)
+    return "-" if v is None else f"{f.format(v[0])} +- {f.format(v[1])}"
+
+
+def behaviour_plot(run, out, error_mm=10.0, seed=0):
+    """Fig. 16: one episode of a policy, observations and actions scaled to [-1, 1] per channel,
+    with its phases: free motion (no contact), search after contact, insertion (tip in the hole)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import torch
+    cfg = run["cfg"]
+    act = load_policy(os.path.join(run["dir"], "policy.pt"), cfg["task"])
+    env = sim.AssemblyEnv(cfg["task"], roi=cfg["roi"], e_r=error_mm / 1000, use_base_policy=not act.vanilla)
+    obs, info = env.reset(seed=EVAL_SEED * 7 + seed)
+    feats, poses, wrenches, acts, phase, done = [], [], [], [], [], False
+    while not done:
+        with torch.no_grad():
+            o = {k: torch.as_tensor(v[None]) for k, v in obs.items()}
+            feats.append(act.enc.image(o["image"])[0].numpy() if act.enc.image is not None else np.zeros(6))
+        a = act(obs)
+        obs, r, term, trunc, info = env.step(a)
+        poses.append(info["goal_offset"])
+        wrenches.append(info["f_world"])
+        acts.append(a)
+        phase.append(2 if info["depth"] > 0.001 else 1 if np.abs(info["f_world"][:3]).max() > 0.5 else 0)
+        done = term or trunc
+    env.close()
+    phase = np.maximum.accumulate(phase)        # free -> search after contact -> insertion
+    norm = lambda x: np.array(x) / np.maximum(np.abs(np.array(x)).max(0), 1e-9)   # noqa: E731
+    panels = [("image features", norm(feats)), ("relative pose X - X_g (x, y, z, yaw)", norm(poses)),
+              ("wrench (Fx, Fy, Fz, Tx, Ty, Tz)", norm(wrenches)), ("action (F_d, 6-D)", np.array(acts))]
+    fig, ax = plt.subplots(len(panels), 1, figsize=(7, 8), sharex=True)
+    t = np.arange(1, len(acts) + 1)
+    for x, (name, y) in zip(ax, panels):
+        x.plot(t, y, lw=1)
+        for ph, colour in ((0, "gold"), (1, "red"), (2, "green")):
+            if (phase == ph).any():
+                x.axvspan(t[phase == ph][0] - 0.5, t[phase == ph][-1] + 0.5, color=colour, alpha=0.12)
+        x.set_ylabel(name, fontsize=8)
+        x.set_ylim(-1.1, 1.1)
+    ax[-1].set_xlabel("policy step (0.2 s); yellow: free motion, red: search after contact, green: insertion")
+    fig.suptitle(f"one episode, {cfg['task']}, {error_mm:g} mm error range, success {bool(term)}", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+
+
+def write_report(patterns, out_dir="docs", log=print):
+    """docs/RESULTS.md and its figures from run directories (glob patterns, comma-separated)."""
+    import glob
+    dirs = sorted({d for p in patterns.split(",") for d in glob.glob(p.strip())
+                   if os.path.exists(os.path.join(d, "metrics.csv"))})
+    if not dirs:
+        raise ArgError(f"--report {patterns!r}: no run directory (config.json + metrics.csv) matches")
+    runs = [load_run(d) for d in dirs]
+    os.makedirs(out_dir, exist_ok=True)
+    md = ["# Results", "", f"Regenerated by `python tacrl.py --report \"{patterns}\"` from {len(runs)} run "
+          "directories. Every number below was measured by running this code on a 2-core CPU machine; "
+          "the paper's numbers stand beside ours.", "", "## The runs", "",
+          "| run | task | method | seed | episodes | minutes | final E_r (mm) | max E_r (mm) | eval SR 5/10/15/20 mm |",
+          "|---|---|---|---|---|---|---|---|---|"]
+    for r in runs:
+        ev = r["eval"]
+        srs = " / ".join(f"{row['success_rate']:.2f}" for row in ev["rows"]) if ev else "not finished"
+        md.append(f"| `{r['dir']}` | {r['cfg']['task']} | {method_of(r['cfg'])} | {r['cfg']['seed']} | "
+                  f"{len(r['m']['episode'])} | {r['m']['elapsed_s'][-1] / 60:.1f} | "
+                  f"{r['m']['e_r_mm'][-1]:.1f} | {r['m']['e_r_mm'].max():.1f} | {srs} |")
+    # -- Table 1: peg at 20 mm
+    md += ["", "## Table 1: peg-in-hole at 20 mm error (20 trials, evaluation seeds never used in training)", "",
+           "| method | SR | CT (s) | peak contact force x / y / z (N) | cumulative reward | paper: SR, CT, force x/y/z |",
+           "|---|---|---|---|---|---|"]
+    path = os.path.join(out_dir, "two-step-peg-20mm.json")
+    if os.path.exists(path):
+        with open(path) as f:
+            ts_row = json.load(f)
+    else:
+        log("evaluating the two-step baseline (peg, 20 mm, 20 episodes)")
+        env = sim.AssemblyEnv("peg", e_r=0.02)
+        ts = TwoStep(env)
+        ts.calibrate()
+        ts_row = evaluate(env, ts, 20, EVAL_SEED, log=lambda *_: None)
+        env.close()
+        with open(path, "w") as f:
+            json.dump(ts_row, f, indent=2)
+    table1 = [("two-step", [ts_row])]
+    for name in ("vanilla", "visual", "ours"):
+        rows = [row for r in runs if r["cfg"]["task"] == "peg" and method_of(r["cfg"]) == name and r["eval"]
+                for row in r["eval"]["rows"] if row["error_mm"] == 20.0]
+        table1.append((name, rows))
+    for name, rows in table1:
+        if not rows:
+            md.append(f"| {name} | not run | | | | {PAPER_TABLE1[name]} |")
+            continue
+        sr = np.array([x["success_rate"] for x in rows])
+        if len(rows) == 1:
+            ct = cell(rows[0], "completion_time_s")
+        else:                              # the seeds' mean completion times, averaged
+            cts = [x["completion_time_s"][0] for x in rows if x["completion_time_s"]]
+            ct = f"{np.mean(cts):.2f} (mean of seeds)" if cts else "-"
+        fx = " / ".join(f"{np.mean([x[k][0] for x in rows]):.2f}"
+                        for k in ("contact_force_x_N", "contact_force_y_N", "contact_force_z_N"))
+        cr = f"{np.mean([x['cumulative_reward'][0] for x in rows]):.1f}"
+        srs = f"{sr.mean():.2f}" + (f" +- {sr.std():.2f} ({len(rows)} seeds)" if len(rows) > 1 else "")
+        md.append(f"| {name} | {srs} | {ct} | {fx} | {cr} | {PAPER_TABLE1[name]} |")
+    # -- Table 2: ours in the training and unseen contexts
+    md += ["", "## Table 2: our policy in the training context and two unseen ones", "",
+           "Success rate / completion time (s) / cumulative reward at 5, 10, 15, 20 mm error, 20 trials each.", "",
+           "| task | context | 5 mm | 10 mm | 15 mm | 20 mm | paper SR (real robot) |", "|---|---|---|---|---|---|---|"]
+    for task in ("peg", "gear"):
+        ours = [r for r in runs if r["cfg"]["task"] == task and method_of(r["cfg"]) == "ours" and r["eval"]]
+        if not ours:
+            md.append(f"| {task} | - | not run | | | | |")
+            continue
+        best = ours[0]                      # the first seed stands for the method in the unseen contexts
+        for ctx in ("train",) + UNSEEN:
+            rows = best["eval"]["rows"] if ctx == "train" else eval_cached(best, ctx, log=log)
+            cells = [f"{x['success_rate']:.2f} / {cell(x, 'completion_time_s', '{:.1f}').split(' +-')[0]} / "
+                     f"{x['cumulative_reward'][0]:.1f}" for x in rows if x["error_mm"] in LEVELS]
+            md.append(f"| {task} | {ctx} | {' | '.join(cells)} | {PAPER_TABLE2.get((task, ctx), '-')} |")
+    # -- figures
+    figs = []
+    for task in ("peg", "gear"):
+        groups = {}
+        for r in runs:
+            if r["cfg"]["task"] == task:
+                groups.setdefault(method_of(r["cfg"]), []).append(r)
+        if groups:
+            for key, label in (("e_r_mm", "guidance error range E_r (mm)"), ("sr15", "success rate (last 15)")):
+                name = f"fig-{task}-{key.split('_')[0]}.png"
+                plot_groups(groups, key, label, os.path.join(out_dir, name), f"{task}: every method and ablation run")
+                figs.append((name, f"{task}: {label} against episode, mean over seeds with a 95% bootstrap band "
+                                   "(the paper's Fig. 9-11 show these per ablation)"))
+    ours_peg = [r for r in runs if r["cfg"]["task"] == "peg" and method_of(r["cfg"]) == "ours" and r["eval"]]
+    if ours_peg:
+        behaviour_plot(ours_peg[0], os.path.join(out_dir, "fig-behaviour.png"))
+        figs.append(("fig-behaviour.png", "one episode of our peg policy at 10 mm error (the paper's Fig. 16)"))
+    md += ["", "## Figures", ""]
+    for name, caption in figs:
+        md += [f"![{caption}]({name})", "", f"*{caption}*", ""]
+    with open(os.path.join(out_dir, "RESULTS.md"), "w") as f:
+        f.write("\n".join(md) + "\n")
+    log(f"wrote {out_dir}/RESULTS.md and {len(figs)} figures")
+    return 0
+
+
+# ---------------------------------------------------------------- several seeds
+def strip_flag(argv, flag):
+    """argv without `flag VALUE` / `flag=VALUE`."""
+    out, skip = [], False
+    for x in argv:
+        if skip:
+            skip = False
+        elif x == flag:
+            skip = True
+        elif not x.startswith(flag + "="):
+            out.append(x)
+    return out
+
+
+def seed_commands(a, argv, cores=None):
+    """--seeds: how many processes at once, and (seed, run dir, command line) for each seed."""
+    seeds = [int(x) for x in a.seeds.split(",")]
+    cores = cores or os.cpu_count() or 1
+    parallel = min(len(seeds), cores)
+    base = argv
+    for flag in ("--seeds", "--seed", "--run-dir", "--threads"):
+        base = strip_flag(base, flag)
+    jobs = []
+    for s in seeds:
+        run_dir = re.sub(r"-s\d+$", "", a.run_dir) + f"-s{s}"
+        jobs.append((s, run_dir, [sys.executable, os.path.abspath(__file__), *base, "--seed", str(s),
+                                  "--run-dir", run_dir, "--threads", str(a.threads or max(1, cores // parallel))]))
+    return parallel, jobs
+
+
+def train_seeds(a, argv):
+    """--seeds: one `tacrl.py ... --seed S` process per seed, at most one per core at a time, each
+    with torch on cores // parallel threads (two torch processes spinning on the same cores slow each
+    other down many times over). Each run is an ordinary run dir: resumable on its own."""
+    import subprocess
+    parallel, jobs = seed_commands(a, argv)
+    todo, running, t0, shown = list(jobs), {}, time.time(), 0.0
+    while todo or running:
+        while todo and len(running) < parallel:
+            s, run_dir, cmd = todo.pop(0)
+            os.makedirs(run_dir, exist_ok=True)
+            running[s] = (subprocess.Popen(cmd, stdout=open(os.path.join(run_dir, "train.log"), "w"),
+                                           stderr=subprocess.STDOUT), run_dir)
+            print(f"seed {s}: started, {run_dir}/train.log", flush=True)
+        time.sleep(5)
+        status = []
+        for s, (proc, run_dir) in list(running.items()):
+            with open(os.path.join(run_dir, "train.log")) as f:
+                last = [ln for ln in f.read().splitlines() if ln.startswith("ep ")]
+            status.append(f"s{s} {last[-1].split()[1] if last else '-'}")
+            if proc.poll() is not None:
+                del running[s]
+                print(f"seed {s}: finished with exit code {proc.returncode} ({fmt_time(time.time() - t0)})", flush=True)
+        if status and time.time() - shown > 60:
+            shown = time.time()
+            print(f"[{fmt_time(time.time() - t0)}] episodes: {'  '.join(status)}", flush=True)
+    return 0
+
+
 # ---------------------------------------------------------------- the command line
 def main(argv=None):
+    argv = sys.argv[1:] if argv is None else list(argv)
     try:
         a = parse_args(argv)
+        if a.report:
+            return write_report(a.report, a.report_dir)
+        if a.seeds:
+            return train_seeds(a, argv)
         if not a.eval:
             print("config:", asdict(a))
             train(a)
             return 0
-        act = (lambda obs: np.zeros(6)) if a.eval == "initial" else load_policy(a.eval, a.task, pick_device(a.device))
+        act = None if a.eval in BASELINES else load_policy(a.eval, a.task, pick_device(a.device))
     except ArgError as e:
         print(f"tacrl: error: {e}", file=sys.stderr)
         return 2
@@ -489,13 +983,18 @@ def main(argv=None):
         return 130
     print("config:", asdict(a))
     env = sim.AssemblyEnv(a.task, a.context, e_r=a.error_mm / 1000, roi=a.roi, clearance=a.clearance_mm / 1000,
-                          gui=a.gui)
+                          gui=a.gui, use_base_policy=not getattr(act, "vanilla", False))
+    if a.eval == "initial":
+        act = lambda obs: np.zeros(6)          # noqa: E731  the hand-designed policy alone, F_d = 0
+    elif a.eval == "two-step":
+        act = TwoStep(env)
+        print(f"two-step: calibrated the image -> offset map, median error {act.calibrate() * 1000:.2f} mm")
     video = None
     if a.video:
         import cv2
         frame = env.world.render_external()
         video = cv2.VideoWriter(a.video, cv2.VideoWriter_fourcc(*"mp4v"), sim.POLICY_HZ, frame.shape[1::-1])
-    name = "initial" if a.eval == "initial" else "TA-MRP"
+    name = a.eval if a.eval in BASELINES else "TA-MRP"
     try:
         row = evaluate(env, act, a.episodes, a.seed, video)
     except KeyboardInterrupt:

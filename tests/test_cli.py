@@ -21,7 +21,9 @@ def run(*args):
                                   ["--context", "moon"], ["--bogus"], ["--episodes", "many"],
                                   ["--video", "out.avi"], ["--obs", "smell"], ["--curriculum", "fast"],
                                   ["--eval", "no/such/policy.pt"], ["--resume", "no/such/run"],
-                                  ["--eval-levels", "5,x"], ["--device", "tpu"], ["--threads", "-1"]])
+                                  ["--eval-levels", "5,x"], ["--device", "tpu"], ["--threads", "-1"],
+                                  ["--eval", "two-step", "--task", "gear"], ["--seeds", "0,x"], ["--seeds", "1,1"],
+                                  ["--aux-weight", "-1"], ["--report", "no/such/run*"]])
 def test_bad_arguments_exit_2_with_one_line(args, capsys):
     import tacrl
     assert tacrl.main(args) == 2
@@ -48,10 +50,10 @@ def test_initial_policy_row_and_json(tmp_path):
 
 
 TINY = ["--task", "peg", "--error-mm", "1", "--train-episodes", "3", "--warmup", "1", "--updates", "2",
-        "--batch", "8", "--episodes", "1", "--eval-levels", "0"]
+        "--batch", "8", "--episodes", "1", "--eval-levels", "0", "--buffer", "150"]
 
 
-def test_training_writes_every_file_resumes_and_evaluates(tmp_path, monkeypatch):
+def test_training_writes_every_file_resumes_and_evaluates(tmp_path, capsys):
     import tacrl
     run_dir = str(tmp_path / "run")
     lines = []
@@ -76,6 +78,11 @@ def test_training_writes_every_file_resumes_and_evaluates(tmp_path, monkeypatch)
         rows = list(csv.DictReader(f))
     assert [int(x["episode"]) for x in rows] == [1, 2, 3]
     assert int(rows[2]["updates"]) == 2 and int(rows[0]["updates"]) == 0     # none during warm-up
+    # on disk: the newest episodes that fill the 150-transition buffer, no older ones
+    steps = [int(x["steps"]) for x in rows]
+    keep = next(i for i in range(3, -1, -1) if sum(steps[i:]) >= 150 or i == 0)
+    kept = sorted(os.listdir(os.path.join(run_dir, "replay")))
+    assert kept == [f"ep_{i + 1:06d}.npz" for i in range(keep, 3)], (steps, kept)
     ev = json.loads(open(os.path.join(run_dir, "eval.json")).read())
     assert [row["error_mm"] for row in ev["rows"]] == [0.0] and ev["eval_seed"] != ev["seed"]
     # the saved policy evaluates like the initial one
@@ -84,19 +91,31 @@ def test_training_writes_every_file_resumes_and_evaluates(tmp_path, monkeypatch)
             "--json", str(out))
     assert r.returncode == 0, r.stderr
     assert "TA-MRP peg 0mm" in r.stdout and json.loads(out.read_text())["episodes"] == 1
-    # ... but not for the other task
-    r = run("--task", "gear", "--eval", os.path.join(run_dir, "policy.pt"))
-    assert r.returncode == 2 and "trained for --task peg" in r.stderr
+    # ... but not for the other task (in-process from here on: a subprocess costs seconds of imports)
+    assert tacrl.main(["--task", "gear", "--eval", os.path.join(run_dir, "policy.pt")]) == 2
+    assert "trained for --task peg" in capsys.readouterr().err
+    # the report lists the run and draws its curves (the two-step row comes from its cache file here:
+    # evaluating the baseline takes a minute)
+    docs = tmp_path / "docs"
+    docs.mkdir()
+    (docs / "two-step-peg-20mm.json").write_text(out.read_text())
+    assert tacrl.main(["--report", run_dir, "--report-dir", str(docs)]) == 0
+    text = (docs / "RESULTS.md").read_text()
+    assert run_dir in text and "Table 1" in text and "Table 2" in text
+    assert (docs / "fig-peg-e.png").stat().st_size > 0 and (docs / "fig-peg-sr15.png").stat().st_size > 0
 
 
-def test_corrupt_checkpoint_and_policy_are_one_line_errors(tmp_path):
+def test_corrupt_checkpoint_and_policy_are_one_line_errors(tmp_path, capsys):
+    import tacrl
     run_dir = tmp_path / "run"
     run_dir.mkdir()
     (run_dir / "config.json").write_text(json.dumps({"task": "peg"}))
     (run_dir / "ckpt.pt").write_bytes(b"not a checkpoint")
-    r = run("--resume", str(run_dir))
-    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "corrupt" in r.stderr
+    assert tacrl.main(["--resume", str(run_dir)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "corrupt" in err
     bad = tmp_path / "policy.pt"
     bad.write_bytes(b"\x80\x02garbage")
-    r = run("--eval", str(bad))
-    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "cannot load" in r.stderr
+    assert tacrl.main(["--eval", str(bad)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "cannot load" in err
