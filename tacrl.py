@@ -298,9 +298,9 @@ class TwoStep:
         """Fit the image -> lateral offset map; returns its median error on the fitted samples, m."""
         env, feats, offsets = self.env, [], []
         rng = np.random.default_rng(seed)
+        scale = np.array([sim.E_R_FINAL] * 3 + [sim.E_ROT_FINAL])     # Eq. 13 at the final range
         for _ in range(episodes):
-            e = rng.uniform(-1, 1, 4) * np.array([sim.E_R_FINAL] * 3 + [sim.E_ROT_FINAL])
-            obs, info = env.reset(options={"error": e})
+            obs, info = env.reset(options={"error": rng.uniform(-1, 1, 4) * scale})
             for k in range(self.SERVO):
                 b = hole_blob(obs["image"])
                 if b is not None:
@@ -313,8 +313,7 @@ class TwoStep:
         # a bias of the fit near the hole (where the servo ends), which we then subtract
         self.bias, ends = np.zeros(2), []
         for _ in range(episodes // 2):
-            e = rng.uniform(-1, 1, 4) * np.array([sim.E_R_FINAL] * 3 + [sim.E_ROT_FINAL])
-            obs, info = env.reset(options={"error": e})
+            obs, info = env.reset(options={"error": rng.uniform(-1, 1, 4) * scale})
             self.reset()
             for k in range(self.SERVO + 4):
                 obs, _, _, _, info = env.step(self(obs))
@@ -506,6 +505,7 @@ def train(a, log=lambda msg: print(msg, flush=True)):
     buf = policy.ReplayBuffer(a.buffer, shapes, aux_dim=sac.aux_head.out_features if sac.aux_head else 0)
     start, total_steps, elapsed0 = 0, 0, 0.0
     on_disk = collections.deque()        # (replay file, transitions) the buffer holds, oldest first
+    on_disk_steps = 0                    # their transitions, summed
     metrics_path = os.path.join(a.run_dir, "metrics.csv")
     if a.resume and os.path.exists(ckpt_path):
         try:
@@ -523,6 +523,7 @@ def train(a, log=lambda msg: print(msg, flush=True)):
             ep_data = load_episode(f)
             buf.add_episode(ep_data)
             on_disk.append((f, len(ep_data["act"])))
+            on_disk_steps += len(ep_data["act"])
         with open(metrics_path) as f:
             rows = [r for r in csv.DictReader(f) if int(r["episode"]) <= start]
         with open(metrics_path, "w", newline="") as f:
@@ -569,10 +570,13 @@ def train(a, log=lambda msg: print(msg, flush=True)):
             buf.add_episode(episode)
             total_steps += len(acts)
             on_disk.append((path, len(acts)))
+            on_disk_steps += len(acts)
             # keep on disk only what the ring buffer holds: drop the oldest file while the rest still
             # fill it (the same rule as trim_episode_files, without reopening every file)
-            while sum(n for _, n in on_disk) - on_disk[0][1] >= a.buffer:
-                os.remove(on_disk.popleft()[0])
+            while on_disk_steps - on_disk[0][1] >= a.buffer:
+                old, n = on_disk.popleft()
+                os.remove(old)
+                on_disk_steps -= n
             t_env = time.time() - t0
             # -- update the policy with SAC (line 10)
             t0, losses = time.time(), []
