@@ -87,11 +87,11 @@ def test_training_writes_every_file_resumes_and_evaluates(tmp_path, capsys):
     assert [row["error_mm"] for row in ev["rows"]] == [0.0] and ev["eval_seed"] != ev["seed"]
     # the saved policy evaluates like the initial one
     out = tmp_path / "row.json"
-    r = run("--task", "peg", "--eval", os.path.join(run_dir, "policy.pt"), "--error-mm", "0", "--episodes", "1",
-            "--json", str(out))
-    assert r.returncode == 0, r.stderr
-    assert "TA-MRP peg 0mm" in r.stdout and json.loads(out.read_text())["episodes"] == 1
-    # ... but not for the other task (in-process from here on: a subprocess costs seconds of imports)
+    capsys.readouterr()                  # (in-process from here on: a subprocess costs seconds of imports)
+    assert tacrl.main(["--task", "peg", "--eval", os.path.join(run_dir, "policy.pt"), "--error-mm", "0",
+                       "--episodes", "1", "--json", str(out)]) == 0
+    assert "TA-MRP peg 0mm" in capsys.readouterr().out and json.loads(out.read_text())["episodes"] == 1
+    # ... but not for the other task
     assert tacrl.main(["--task", "gear", "--eval", os.path.join(run_dir, "policy.pt")]) == 2
     assert "trained for --task peg" in capsys.readouterr().err
     # the report lists the run and draws its curves (the two-step row comes from its cache file here:
