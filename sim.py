@@ -305,7 +305,10 @@ class World:
         # torque-limited: full-strength velocity motors pressed 300 N spikes into the board and
         # bounced the admittance loop. With no free bodies in the scene nothing else needs gravity.
         bc.setGravity(0, 0, 0)
-        bc.setPhysicsEngineParameter(numSolverIterations=50, enableFileCaching=0)
+        # Contacts break after 1 mm, not Bullet's 20 mm: at the default, a point made where a blade
+        # touched the chamfer stayed in the cache after the blade slid past it, still pushing up
+        # along the chamfer's normal, and held a centred peg 1 mm into the hole (bench/jam_noise.py).
+        bc.setPhysicsEngineParameter(numSolverIterations=50, enableFileCaching=0, contactBreakingThreshold=0.001)
         if gui:
             bc.configureDebugVisualizer(p.COV_ENABLE_GUI, 0)
         # table: top at z = 0

@@ -21,10 +21,11 @@ def gear_world():
     w.close()
 
 
-def insert(world, x_g, x_i, dx=0.0, dyaw=0.0):
-    """Stiff lateral hold at (dx, dyaw) off the goal, soft in z, aim 5 mm below X_g."""
+def insert(world, x_g, x_i, dx=0.0, dyaw=0.0, duration=3.0):
+    """Stiff lateral hold at (dx, dyaw) off the goal, soft in z, aim 5 mm below X_g in `duration` s."""
     R = ctl.rot_z(dyaw) @ x_g[1]
-    x, f, _ = sim.probe(world, (x_i[0] + [dx, 0, 0], R), (x_g[0] + [dx, 0, -0.005], R))
+    x, f, _ = sim.probe(world, (x_i[0] + [dx, 0, 0], R), (x_g[0] + [dx, 0, -0.005], R), duration=duration,
+                        seconds=duration + 3.0)
     return x, f
 
 
@@ -54,9 +55,11 @@ def test_peg_inserts_when_centred(peg_world):
 
 @pytest.mark.parametrize("dx", [0.0002, -0.0001])
 def test_peg_blocked_off_centre(peg_world, dx):
-    # the default clearance is 0.1 mm diametral: more than 0.05 mm off and the peg cannot enter
+    # the default clearance is 0.1 mm diametral: more than 0.05 mm off and the peg cannot enter.
+    # Approach at about 6 mm/s (the trajectory's pace in the env): a 20 mm/s impact on the chamfer
+    # bounces even this stiff hold 0.05 mm sideways, and the peg then really does slip in.
     w, x_g, x_i = peg_world
-    x, f = insert(w, x_g, x_i, dx)
+    x, f = insert(w, x_g, x_i, dx, duration=10.0)
     assert not sim.is_success(x, x_g)
     assert sim.BOARD_THICK - x[0][2] < 0.001             # resting on the chamfer / rim
     assert -f[2] > 0.5                                   # and the sensor feels the board push back
