@@ -462,18 +462,29 @@ def episode_files(run_dir):
                   f.endswith(".npz") and ".tmp" not in f)
 
 
+def drop_unheld(on_disk, steps, capacity):
+    """Delete the oldest replay files while the newer ones still fill the ring buffer. on_disk: a
+    deque of (path, transitions), oldest first, holding `steps` transitions; returns what is left."""
+    while on_disk and steps - on_disk[0][1] >= capacity:
+        old, n = on_disk.popleft()
+        os.remove(old)
+        steps -= n
+    return steps
+
+
 def trim_episode_files(run_dir, capacity, keep_upto):
     """Delete replay files past the checkpoint (an episode cut short by an interrupt) and the oldest
-    ones that the ring buffer no longer holds; returns the rest as paths, oldest first."""
-    kept, n_kept = [], 0
-    for n, f in reversed(episode_files(run_dir)):
-        if n > keep_upto or n_kept >= capacity:
+    ones that the ring buffer no longer holds; returns the rest as (deque of (path, transitions),
+    oldest first; their transitions summed)."""
+    on_disk, steps = collections.deque(), 0
+    for n, f in episode_files(run_dir):
+        if n > keep_upto:
             os.remove(f)
             continue
         with np.load(f, allow_pickle=False) as z:
-            n_kept += len(z["act"])
-        kept.append(f)
-    return kept[::-1]
+            on_disk.append((f, len(z["act"])))
+        steps += on_disk[-1][1]
+    return on_disk, drop_unheld(on_disk, steps, capacity)
 
 
 def fmt_time(s):
@@ -504,8 +515,7 @@ def train(a, log=lambda msg: print(msg, flush=True)):
     shapes = {"image": (sim.IMG, sim.IMG), "pose_hist": (sim.HIST, 6), "wrench_hist": (sim.HIST, 6)}
     buf = policy.ReplayBuffer(a.buffer, shapes, aux_dim=sac.aux_head.out_features if sac.aux_head else 0)
     start, total_steps, elapsed0 = 0, 0, 0.0
-    on_disk = collections.deque()        # (replay file, transitions) the buffer holds, oldest first
-    on_disk_steps = 0                    # their transitions, summed
+    on_disk, on_disk_steps = collections.deque(), 0    # (replay file, transitions) the buffer holds; their sum
     metrics_path = os.path.join(a.run_dir, "metrics.csv")
     if a.resume and os.path.exists(ckpt_path):
         try:
@@ -519,11 +529,9 @@ def train(a, log=lambda msg: print(msg, flush=True)):
         except Exception as e:
             raise ArgError(f"--resume {a.run_dir!r}: ckpt.pt is corrupt or does not match this run's "
                            f"config ({type(e).__name__}: {str(e).splitlines()[0][:120]})")
-        for f in trim_episode_files(a.run_dir, a.buffer, start):
-            ep_data = load_episode(f)
-            buf.add_episode(ep_data)
-            on_disk.append((f, len(ep_data["act"])))
-            on_disk_steps += len(ep_data["act"])
+        on_disk, on_disk_steps = trim_episode_files(a.run_dir, a.buffer, start)
+        for f, _ in on_disk:
+            buf.add_episode(load_episode(f))
         with open(metrics_path) as f:
             rows = [r for r in csv.DictReader(f) if int(r["episode"]) <= start]
         with open(metrics_path, "w", newline="") as f:
@@ -571,12 +579,7 @@ def train(a, log=lambda msg: print(msg, flush=True)):
             total_steps += len(acts)
             on_disk.append((path, len(acts)))
             on_disk_steps += len(acts)
-            # keep on disk only what the ring buffer holds: drop the oldest file while the rest still
-            # fill it (the same rule as trim_episode_files, without reopening every file)
-            while on_disk_steps - on_disk[0][1] >= a.buffer:
-                old, n = on_disk.popleft()
-                os.remove(old)
-                on_disk_steps -= n
+            on_disk_steps = drop_unheld(on_disk, on_disk_steps, a.buffer)   # disk keeps what the buffer holds
             t_env = time.time() - t0
             # -- update the policy with SAC (line 10)
             t0, losses = time.time(), []
@@ -1000,7 +1003,7 @@ def main(argv=None):
         video = cv2.VideoWriter(a.video, cv2.VideoWriter_fourcc(*"mp4v"), sim.POLICY_HZ, frame.shape[1::-1])
     name = a.eval if a.eval in BASELINES else "TA-MRP"
     try:
-        row = evaluate(env, act, a.episodes, a.seed, video)
+        row = evaluate(env, act, a.episodes, EVAL_SEED + a.seed, video)   # the seeds of eval.json and the report
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
