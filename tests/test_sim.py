@@ -53,6 +53,23 @@ def test_peg_inserts_when_centred(peg_world):
     assert sim.BOARD_THICK - x[0][2] > 0.023             # 23+ mm deep in the hole
 
 
+def test_centred_peg_with_lateral_noise_is_not_jammed():
+    # bench/jam_noise.py's first episode (Ex_r 20 mm, lateral noise std 0.05): with Bullet's 20 mm
+    # contact-breaking threshold a stale chamfer contact held this peg 1 mm into the hole
+    env = sim.AssemblyEnv("peg", e_r=0.0, image=False)
+    env.set_ranges(0.0, 0.02)
+    rng = np.random.default_rng(0)
+    env.reset(seed=0)
+    done = False
+    while not done:
+        act = np.zeros(6)
+        act[:2] = np.tanh(rng.normal(0, 0.05, 2))
+        _, _, term, trunc, info = env.step(act)
+        done = term or trunc
+    env.close()
+    assert term, info["depth"]
+
+
 @pytest.mark.parametrize("dx", [0.0002, -0.0001])
 def test_peg_blocked_off_centre(peg_world, dx):
     # the default clearance is 0.1 mm diametral: more than 0.05 mm off and the peg cannot enter.
