@@ -365,7 +365,10 @@ class World:
             plate = [(he, pos, R, WHITE) for he, pos, R in plate_boxes(0.012, 0.12, -t, 0.0)]
             parts = [(he, pos, R, BLACK) for he, pos, R in ring_boxes(r_h, 0.012, -HOLE_DEPTH, -CHAMFER, 16)]
             parts += [(he, pos, R, GREY) for he, pos, R in chamfer_boxes(r_h, CHAMFER, 16)]
-            parts += [(he, pos, R, DARK) for he, pos, R in ring_boxes(r_h + CHAMFER, 0.012 - CHAMFER, -CHAMFER, 0.0, 16)]
+            # the top ring reaches under the plate (its 20 mm outer radius against the 12 mm half-side
+            # opening): coplanar tops, so it takes the plate's colour, or TinyRenderer z-fights them
+            # into view-dependent stripes
+            parts += [(he, pos, R, WHITE) for he, pos, R in ring_boxes(r_h + CHAMFER, 0.012 - CHAMFER, -CHAMFER, 0.0, 16)]
             parts.append(((0.02, 0.02, (t - HOLE_DEPTH) / 2), (0, 0, -(t + HOLE_DEPTH) / 2), np.eye(3), BLACK))
             return self._compound(plate), [(b, 0.0) for b in self._compound(parts)]
         # gear board: plate, fixed mating gear (hub + teeth, a gap facing the shaft), shaft body
