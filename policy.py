@@ -108,6 +108,24 @@ class Encoder(nn.Module):
         return torch.tanh(self.norm(torch.cat(z, 1)))       # the fusion vector, (B, 18) for ts-ptv
 
 
+class StateEncoder(nn.Module):
+    """The privileged critic's input (an asymmetric actor-critic, not in the paper): obs -> (B, 24 +
+    state_dim) = the last two pose and wrench readings (scaled) and obs['state'], a vector the training
+    loop computes from what the simulator knows and the policy does not (tacrl: X - X_g, the quantity
+    Eq. 17's reward is made of, and the time). No learned weights: the Q heads' MLPs do the work."""
+
+    def __init__(self, state_dim, pose_scale=np.ones(6), wrench_scale=np.ones(6)):
+        super().__init__()
+        self.register_buffer("pose_scale", torch.as_tensor(np.asarray(pose_scale), dtype=torch.float32))
+        self.register_buffer("wrench_scale", torch.as_tensor(np.asarray(wrench_scale), dtype=torch.float32))
+        self.out_dim = 24 + state_dim
+
+    def forward(self, obs):
+        pose = (obs["pose_hist"][:, -2:] / self.pose_scale).flatten(1)           # (B, 12)
+        wrench = (obs["wrench_hist"][:, -2:] / self.wrench_scale).flatten(1)     # (B, 12)
+        return torch.cat([pose, wrench, obs["state"]], 1)
+
+
 # ---------------------------------------------------------------- actor and critics
 class Actor(nn.Module):
     """Fusion vector -> 2 x 256 MLP -> mean and log-std of a 6-d Gaussian, squashed by tanh."""
@@ -209,6 +227,11 @@ class SAC:
     prior_weight: a penalty prior_weight * |mean action|^2 in the actor loss (not in the paper): the
     residual stays near F_d = 0, the hand-designed policy, unless the critics value leaving it more.
 
+    state_dim: > 0 makes the critics privileged (an asymmetric actor-critic, Pinto et al. 2018; not in
+    the paper): they read StateEncoder(obs), which includes obs['state'] (state_dim,), instead of the
+    multimodal encoder, and the actor has a multimodal encoder of its own, trained through the actor
+    loss. The critics then need not learn to see the hole before they can say which way it lies.
+
     aux_dim, aux_weight: an auxiliary regression (not in the paper) from the critic's fusion vector
     to a target the buffer stores with each o, added to the critic loss with this weight. tacrl
     uses the tip's offset from the true goal, X - X_g, the quantity Eq. 17's reward is computed
@@ -217,16 +240,17 @@ class SAC:
 
     def __init__(self, obs_kind="ts-ptv", pose_scale=np.ones(6), wrench_scale=np.ones(6), act_dim=6,
                  lr=3e-4, gamma=0.99, tau=0.005, init_alpha=0.1, shared_encoder=True, aux_dim=0,
-                 aux_weight=1.0, target_entropy=None, prior_weight=0.0, device="cpu"):
+                 aux_weight=1.0, target_entropy=None, prior_weight=0.0, state_dim=0, device="cpu"):
+        shared_encoder = shared_encoder and not state_dim        # a privileged critic cannot lend its encoder
         self.device, self.gamma, self.tau, self.shared = torch.device(device), gamma, tau, shared_encoder
         enc = lambda: Encoder(obs_kind, pose_scale, wrench_scale).to(self.device)  # noqa: E731
-        self.enc = enc()
+        self.enc = StateEncoder(state_dim, pose_scale, wrench_scale).to(self.device) if state_dim else enc()
         self.q = TwinQ(self.enc.out_dim, act_dim).to(self.device)
         self.enc_targ, self.q_targ = copy.deepcopy(self.enc), copy.deepcopy(self.q)
         for p in list(self.enc_targ.parameters()) + list(self.q_targ.parameters()):
             p.requires_grad_(False)
-        self.actor = Actor(self.enc.out_dim, act_dim).to(self.device)
         self.actor_enc = None if shared_encoder else enc()
+        self.actor = Actor((self.enc if shared_encoder else self.actor_enc).out_dim, act_dim).to(self.device)
         self.log_alpha = torch.tensor(np.log(init_alpha), dtype=torch.float32, device=self.device,
                                       requires_grad=True)
         self.target_entropy = -float(act_dim) if target_entropy is None else float(target_entropy)

@@ -64,6 +64,7 @@ class Args:
     lr: float = 3e-4             # Adam step size of actor, critics and temperature
     gamma: float = 0.95          # discount (0.99 let the critics thrash: see README)
     aux_weight: float = 0.0      # weight of an auxiliary X - X_g regression (not in the paper; 0: off)
+    critic: str = "multimodal"   # 'multimodal' (the paper) or 'privileged' (critics read X - X_g; not in the paper)
     vanilla: bool = False        # the 'vanilla' baseline: no trajectory guidance, the residual acts alone
     device: str = "auto"         # auto, cpu or cuda
     threads: int = 0             # torch CPU threads (0: torch's default, one per core)
@@ -93,7 +94,10 @@ HELP = {
     "batch": "SAC batch size", "buffer": "replay capacity (transitions)", "lr": "learning rate",
     "gamma": "discount factor", "vanilla": "train the 'vanilla' baseline: SAC without the base policy's "
     "trajectory (the residual acts alone through the same compliance controller)", "aux_weight": "weight of the auxiliary loss that regresses X - X_g "
-    "from the critic's features (0: the paper's plain SAC)", "device": "auto, cpu or cuda", "run_dir": "run directory",
+    "from the critic's features (0: the paper's plain SAC)",
+    "critic": "multimodal (the paper: the critics see what the actor sees) or privileged (an asymmetric "
+    "actor-critic: the critics read the tip's offset from the true goal, X - X_g, which Eq. 17's reward "
+    "already uses, and the time; the actor gets its own encoder)", "device": "auto, cpu or cuda", "run_dir": "run directory",
     "eval_levels": "comma-separated error ranges (mm) evaluated after training",
     "report": "regenerate docs/RESULTS.md and its figures from these run directories (comma-separated glob "
     "patterns, e.g. 'runs/*'); evaluates what the report needs and has not got yet",
@@ -149,6 +153,8 @@ def check_args(a):
             raise ArgError(f"--{name} must be at least 0, not {getattr(a, name)}")
     if not (0.0 < a.lr < 1.0 and 0.0 < a.gamma < 1.0):
         raise ArgError(f"--lr and --gamma must be within (0, 1), not {a.lr} and {a.gamma}")
+    if a.critic not in CRITICS:
+        raise ArgError(f"--critic must be one of {', '.join(CRITICS)}, not {a.critic!r}")
     if a.aux_weight < 0 or a.prior_weight < 0:
         raise ArgError(f"--aux-weight and --prior-weight must be at least 0, not {a.aux_weight} and {a.prior_weight}")
     if a.context not in sim.CONTEXTS:
@@ -374,6 +380,17 @@ POSE_SCALE = [sim.E_R_FINAL] * 3 + [sim.E_ROT_FINAL] * 3    # the encoder divide
 # curriculum's first levels visible in the loss.
 AUX_SCALE = np.array([0.005, 0.005, 0.025])
 AUX_DIMS = [0, 1, 3]                          # of info['goal_offset'] (x, y, z, yaw)
+CRITICS = ("multimodal", "privileged")
+STATE_DIM = 7                                 # the privileged critic's obs['state'], see critic_state
+
+
+def critic_state(info):
+    """What --critic privileged adds to the critics' input (7,): X - X_g (x, y over 5 mm, z over
+    25 mm, yaw over 0.025 rad), x and y again through tanh(. / 1 mm) so that the last millimetre,
+    where the chamfer catches or misses, stands out, and the time over the episode's 24 s."""
+    off = info["goal_offset"]
+    return np.array([off[0] / 0.005, off[1] / 0.005, off[2] / 0.025, off[3] / 0.025, np.tanh(off[0] / 0.001),
+                     np.tanh(off[1] / 0.001), info["t"] * sim.POLICY_HZ / sim.MAX_STEPS], np.float32)
 EVAL_SEED = 1000                                               # eval seeds: EVAL_SEED + --seed, never a training seed
 
 
@@ -386,7 +403,8 @@ def make_sac(a, device):
     import policy
     return policy.SAC(a.obs, POSE_SCALE, sim.F_MAX6, lr=a.lr, gamma=a.gamma, device=device,
                       aux_dim=len(AUX_SCALE) if a.aux_weight > 0 else 0, aux_weight=a.aux_weight,
-                      target_entropy=a.target_entropy, prior_weight=a.prior_weight)
+                      target_entropy=a.target_entropy, prior_weight=a.prior_weight,
+                      state_dim=STATE_DIM if a.critic == "privileged" else 0)
 
 
 def save_atomic(obj, path):
@@ -513,6 +531,9 @@ def train(a, log=lambda msg: print(msg, flush=True)):
     env.rng = np.random.default_rng(a.seed)
     sample_rng = np.random.default_rng(a.seed + 1)
     shapes = {"image": (sim.IMG, sim.IMG), "pose_hist": (sim.HIST, 6), "wrench_hist": (sim.HIST, 6)}
+    privileged = a.critic == "privileged"
+    if privileged:                   # the critics' extra input rides in the replay as one more obs key
+        shapes["state"] = (STATE_DIM,)
     buf = policy.ReplayBuffer(a.buffer, shapes, aux_dim=sac.aux_head.out_features if sac.aux_head else 0)
     start, total_steps, elapsed0 = 0, 0, 0.0
     on_disk, on_disk_steps = collections.deque(), 0    # (replay file, transitions) the buffer holds; their sum
@@ -556,6 +577,8 @@ def train(a, log=lambda msg: print(msg, flush=True)):
             env.set_ranges(e_r, ex_r)
             obs, info = env.reset()
             traj, aux = {k: [v] for k, v in obs.items()}, [info["goal_offset"][AUX_DIMS] / AUX_SCALE]
+            if privileged:
+                traj["state"] = [critic_state(info)]
             acts, rews, terms, done, ret = [], [], [], False, 0.0
             while not done:
                 # warm-up: uniform actions (Spinning Up's start steps), so that the critics have
@@ -564,6 +587,8 @@ def train(a, log=lambda msg: print(msg, flush=True)):
                 obs, r, term, trunc, info = env.step(act)
                 for k, v in obs.items():
                     traj[k].append(v)
+                if privileged:
+                    traj["state"].append(critic_state(info))
                 aux.append(info["goal_offset"][AUX_DIMS] / AUX_SCALE)
                 acts.append(act)
                 rews.append(r)
@@ -698,7 +723,7 @@ def method_of(cfg):
     else:
         name = f"{cfg['obs']}, {cfg['curriculum']} to {cfg['error_mm']:g} mm, roi {cfg['roi']}"
     default = Args()
-    changed = [f"{k} {cfg[k]}" for k in ("updates", "warmup", "batch", "lr", "gamma", "aux_weight",
+    changed = [f"{k} {cfg[k]}" for k in ("critic", "updates", "warmup", "batch", "lr", "gamma", "aux_weight",
                                          "prior_weight", "target_entropy", "train_episodes")
                if k in cfg and cfg[k] != getattr(default, k)]
     return name + (f" ({', '.join(changed)})" if changed else "")
