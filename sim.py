@@ -747,6 +747,23 @@ class AssemblyEnv:
         self.world.close()
 
 
+def run_episode(env, act, seed=None, options=None, on_step=None):
+    """Reset env, then step act(obs) -> action until the episode ends (success or time-out). A policy
+    with memory (an act with a reset method) is reset after the env. on_step(obs, r, info) sees every
+    step. Returns (success, the last step's info, the return)."""
+    obs, info = env.reset(seed=seed, options=options)
+    if hasattr(act, "reset"):
+        act.reset()
+    ret, done = 0.0, False
+    while not done:
+        obs, r, term, trunc, info = env.step(act(obs))
+        ret += r
+        if on_step is not None:
+            on_step(obs, r, info)
+        done = term or trunc
+    return term, info, ret
+
+
 if __name__ == "__main__":
     import argparse
     ap = argparse.ArgumentParser(description="watch the hand-designed policy")
@@ -755,9 +772,5 @@ if __name__ == "__main__":
     ap.add_argument("--error-mm", type=float, default=0.0)
     a = ap.parse_args()
     env = AssemblyEnv(a.task, e_r=a.error_mm / 1000, gui=a.gui)
-    obs, info = env.reset(seed=0)
-    done = False
-    while not done:
-        obs, r, term, trunc, info = env.step(np.zeros(6))
-        print(f"t={info['t']:5.1f}s depth={info['depth'] * 1000:6.2f}mm F={np.round(info['f_world'][:3], 2)} r={r:7.2f}")
-        done = term or trunc
+    run_episode(env, lambda obs: np.zeros(6), seed=0, on_step=lambda obs, r, info: print(
+        f"t={info['t']:5.1f}s depth={info['depth'] * 1000:6.2f}mm F={np.round(info['f_world'][:3], 2)} r={r:7.2f}"))

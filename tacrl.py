@@ -219,17 +219,13 @@ def evaluate(env, act, episodes, seed, video=None, log=print):
     succ, times, forces, returns = [], [], [], []
     t0 = time.time()
     for ep in range(episodes):
-        obs, info = env.reset(seed=seed * 100003 + ep)
-        if hasattr(act, "reset"):            # a policy with memory (the two-step baseline)
-            act.reset()
-        ret, peak, done = 0.0, np.zeros(3), False
-        while not done:
-            obs, r, term, trunc, info = env.step(act(obs))
-            ret += r
-            peak = np.maximum(peak, np.abs(info["f_world"][:3]))
-            done = term or trunc
-            if video is not None and ep == 0:
+        peak = np.zeros(3)
+
+        def on_step(obs, r, info, first=ep == 0):
+            np.maximum(peak, np.abs(info["f_world"][:3]), out=peak)
+            if video is not None and first:
                 video.write(env.world.render_external()[:, :, ::-1])
+        term, info, ret = sim.run_episode(env, act, seed=seed * 100003 + ep, on_step=on_step)
         succ.append(term)
         returns.append(ret)
         forces.append(peak)
@@ -801,19 +797,20 @@ def behaviour_plot(run, out, error_mm=10.0, seed=0):
     cfg = run["cfg"]
     act = load_policy(os.path.join(run["dir"], "policy.pt"), cfg["task"])
     env = sim.AssemblyEnv(cfg["task"], roi=cfg["roi"], e_r=error_mm / 1000, use_base_policy=not act.vanilla)
-    obs, info = env.reset(seed=EVAL_SEED * 7 + seed)
-    feats, poses, wrenches, acts, phase, done = [], [], [], [], [], False
-    while not done:
+    feats, poses, wrenches, acts, phase = [], [], [], [], []
+
+    def policy_step(obs):                       # the policy, recording its image features and actions
         with torch.no_grad():
-            o = {k: torch.as_tensor(v[None]) for k, v in obs.items()}
-            feats.append(act.enc.image(o["image"])[0].numpy() if act.enc.image is not None else np.zeros(6))
-        a = act(obs)
-        obs, r, term, trunc, info = env.step(a)
+            img = torch.as_tensor(obs["image"][None])
+            feats.append(act.enc.image(img)[0].numpy() if act.enc.image is not None else np.zeros(6))
+        acts.append(act(obs))
+        return acts[-1]
+
+    def on_step(obs, r, info):
         poses.append(info["goal_offset"])
         wrenches.append(info["f_world"])
-        acts.append(a)
         phase.append(2 if info["depth"] > 0.001 else 1 if np.abs(info["f_world"][:3]).max() > 0.5 else 0)
-        done = term or trunc
+    sim.run_episode(env, policy_step, seed=EVAL_SEED * 7 + seed, on_step=on_step)
     env.close()
     phase = np.maximum.accumulate(phase)        # free -> search after contact -> insertion
     norm = lambda x: np.array(x) / np.maximum(np.abs(np.array(x)).max(0), 1e-9)   # noqa: E731

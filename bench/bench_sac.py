@@ -4,7 +4,8 @@
 
 1. Updates/s of policy.SAC at the given batch on random data of the env's shapes, for each
    observation variant, and for the TA-MRP with the encoder shared between actor and critics
-   (the default) and with an encoder of the actor's own.
+   (the default), with an encoder of the actor's own, and with privileged critics (--critic
+   privileged: no image encoder in the critics, the actor's own encoder).
 2. One training episode as tacrl.py runs it: the policy acting in the env for 120 steps at the
    final 20 mm error range (camera on, an untrained actor), then 200 updates (the paper's count).
 Prints medians over `repeats`; the machine is shared and noisy, so compare ratios.
@@ -22,7 +23,8 @@ import policy  # noqa: E402
 import sim  # noqa: E402
 import tacrl  # noqa: E402
 
-SHAPES = {"image": (sim.IMG, sim.IMG), "pose_hist": (sim.HIST, 6), "wrench_hist": (sim.HIST, 6)}
+SHAPES = {"image": (sim.IMG, sim.IMG), "pose_hist": (sim.HIST, 6), "wrench_hist": (sim.HIST, 6),
+          "state": (tacrl.STATE_DIM,)}        # 'state': what --critic privileged reads; the others ignore it
 
 
 def filled_buffer(rng, n=2000):
@@ -31,7 +33,8 @@ def filled_buffer(rng, n=2000):
     for _ in range(10):
         buf.add_episode({"obs": {"image": rng.integers(0, 256, (T + 1, sim.IMG, sim.IMG), dtype=np.uint8),
                                  "pose_hist": rng.normal(0, 0.01, (T + 1, sim.HIST, 6)).astype(np.float32),
-                                 "wrench_hist": rng.normal(0, 1, (T + 1, sim.HIST, 6)).astype(np.float32)},
+                                 "wrench_hist": rng.normal(0, 1, (T + 1, sim.HIST, 6)).astype(np.float32),
+                                 "state": rng.normal(0, 1, (T + 1, tacrl.STATE_DIM)).astype(np.float32)},
                          "act": rng.uniform(-1, 1, (T, 6)), "rew": rng.normal(size=T), "term": np.zeros(T)})
     return buf
 
@@ -54,10 +57,12 @@ def main():
     rng = np.random.default_rng(0)
     buf = filled_buffer(rng)
     print(f"torch {torch.__version__}, {torch.get_num_threads()} threads, batch {a.batch}")
-    for obs, shared in (("ts-ptv", True), ("ts-ptv", False), ("ts-pt", True), ("pt", True)):
-        r = [updates_per_s(policy.SAC(obs, tacrl.POSE_SCALE, sim.F_MAX6, shared_encoder=shared), buf, rng, a.batch,
-                           a.updates) for _ in range(a.repeats)]
-        print(f"{obs:6s} encoder {'shared  ' if shared else 'separate'}: median {np.median(r):5.1f} updates/s "
+    for obs, critic in (("ts-ptv", "shared"), ("ts-ptv", "separate"), ("ts-ptv", "privileged"), ("ts-pt", "shared"),
+                        ("pt", "shared")):
+        r = [updates_per_s(policy.SAC(obs, tacrl.POSE_SCALE, sim.F_MAX6, shared_encoder=critic == "shared",
+                                      state_dim=tacrl.STATE_DIM if critic == "privileged" else 0),
+                           buf, rng, a.batch, a.updates) for _ in range(a.repeats)]
+        print(f"{obs:6s} critics' encoder {critic:10s}: median {np.median(r):5.1f} updates/s "
               f"(min {min(r):.1f}, max {max(r):.1f})")
     env = sim.AssemblyEnv("peg", e_r=sim.E_R_FINAL)
     sac = policy.SAC("ts-ptv", tacrl.POSE_SCALE, sim.F_MAX6)

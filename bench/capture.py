@@ -25,11 +25,6 @@ for r_mm in map(float, a.errors_mm.split(",")):
     for k in range(a.directions):
         ang = 2 * np.pi * k / a.directions + 0.3
         e = np.array([np.cos(ang), np.sin(ang), 0.0, 0.0]) * r_mm / 1000
-        env.reset(seed=k, options={"error": e})
-        done = False
-        while not done:
-            _, _, term, trunc, _ = env.step(np.zeros(6))
-            done = term or trunc
-        ok += term
+        ok += sim.run_episode(env, lambda obs: np.zeros(6), seed=k, options={"error": e})[0]
     print(f"Ex_r {a.ex_r_mm:g} mm, lateral error {r_mm:g} mm: {ok}/{a.directions} inserted", flush=True)
 env.close()

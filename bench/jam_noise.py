@@ -24,13 +24,7 @@ env.set_ranges(0.0, a.ex_r_mm / 1000)
 rng = np.random.default_rng(0)
 ok, depths = 0, []
 for ep in range(a.episodes):
-    obs, info = env.reset(seed=ep)
-    done = False
-    while not done:
-        act = np.zeros(6)
-        act[:2] = np.tanh(rng.normal(0, a.std, 2))
-        obs, r, term, trunc, info = env.step(act)
-        done = term or trunc
+    term, info, _ = sim.run_episode(env, lambda obs: np.r_[np.tanh(rng.normal(0, a.std, 2)), np.zeros(4)], seed=ep)
     ok += term
     depths.append(round(info["depth"] * 1000, 1))
 env.close()

@@ -93,20 +93,27 @@ def test_checkpoint_round_trip_reproduces_actions():
     np.testing.assert_allclose(sac.act(o, deterministic=True), sac2.act(o, deterministic=True), atol=1e-6)
 
 
-def test_sac_solves_point_reaching():
+@pytest.mark.parametrize("privileged", [False, True])
+def test_sac_solves_point_reaching(privileged):
     """1-D point: x' = clip(x + 0.25 a), r = -|x'|, 10-step episodes that end by time-out only.
     From random starts the learnt mean policy must bring the point within 0.05 of the origin
-    (the initial policy's mean ends about 0.5 away)."""
+    (the initial policy's mean ends about 0.5 away). Privileged: the critics read StateEncoder's
+    input, obs['state'] = [x] included, and the actor learns through an encoder of its own."""
     torch.manual_seed(0)
     rng = np.random.default_rng(0)
 
     def obs_of(x):
         pose = np.zeros((32, 6), np.float32)
         pose[-1, 0] = x
-        return {"pose_hist": pose, "wrench_hist": np.zeros((32, 6), np.float32)}
+        o = {"pose_hist": pose, "wrench_hist": np.zeros((32, 6), np.float32)}
+        if privileged:
+            o["state"] = np.array([x], np.float32)
+        return o
 
-    sac = policy.SAC("pt", lr=1e-3, gamma=0.9)
-    buf = policy.ReplayBuffer(2000, {"pose_hist": (32, 6), "wrench_hist": (32, 6)})
+    sac = policy.SAC("pt", lr=1e-3, gamma=0.9, state_dim=1 if privileged else 0)
+    if privileged:
+        assert isinstance(sac.enc, policy.StateEncoder) and sac.actor_enc is not None and not sac.shared
+    buf = policy.ReplayBuffer(2000, {k: v.shape for k, v in obs_of(0.0).items()})
 
     def rollout(deterministic):
         x = rng.uniform(-1, 1)

@@ -59,13 +59,7 @@ def test_centred_peg_with_lateral_noise_is_not_jammed():
     env = sim.AssemblyEnv("peg", e_r=0.0, image=False)
     env.set_ranges(0.0, 0.02)
     rng = np.random.default_rng(0)
-    env.reset(seed=0)
-    done = False
-    while not done:
-        act = np.zeros(6)
-        act[:2] = np.tanh(rng.normal(0, 0.05, 2))
-        _, _, term, trunc, info = env.step(act)
-        done = term or trunc
+    term, info, _ = sim.run_episode(env, lambda obs: np.r_[np.tanh(rng.normal(0, 0.05, 2)), np.zeros(4)], seed=0)
     env.close()
     assert term, info["depth"]
 
