@@ -21,6 +21,10 @@ variants of the ablation (--obs) drop modalities:
     pt      current pose + wrench, an MLP           12-d
     v       image only (the 'visual' baseline)       6-d
 The fused vector goes through LayerNorm and tanh, then the 2 x 256 heads.
+
+Critics: either the paper's (twin Q on the same multimodal encoder, which the actor then shares)
+or privileged ones (StateEncoder: the last pose and wrench readings plus a state vector that only
+training knows, here the offset from the true goal); the actor is the same in both.
 """
 import copy
 

@@ -64,7 +64,7 @@ class Args:
     lr: float = 3e-4             # Adam step size of actor, critics and temperature
     gamma: float = 0.95          # discount (0.99 let the critics thrash: see README)
     aux_weight: float = 0.0      # weight of an auxiliary X - X_g regression (not in the paper; 0: off)
-    critic: str = "multimodal"   # 'multimodal' (the paper) or 'privileged' (critics read X - X_g; not in the paper)
+    critic: str = "privileged"   # 'privileged' (critics read X - X_g: README difference 13) or 'multimodal' (the paper)
     vanilla: bool = False        # the 'vanilla' baseline: no trajectory guidance, the residual acts alone
     device: str = "auto"         # auto, cpu or cuda
     threads: int = 0             # torch CPU threads (0: torch's default, one per core)
@@ -94,10 +94,11 @@ HELP = {
     "batch": "SAC batch size", "buffer": "replay capacity (transitions)", "lr": "learning rate",
     "gamma": "discount factor", "vanilla": "train the 'vanilla' baseline: SAC without the base policy's "
     "trajectory (the residual acts alone through the same compliance controller)", "aux_weight": "weight of the auxiliary loss that regresses X - X_g "
-    "from the critic's features (0: the paper's plain SAC)",
-    "critic": "multimodal (the paper: the critics see what the actor sees) or privileged (an asymmetric "
-    "actor-critic: the critics read the tip's offset from the true goal, X - X_g, which Eq. 17's reward "
-    "already uses, and the time; the actor gets its own encoder)", "device": "auto, cpu or cuda", "run_dir": "run directory",
+    "from the critic's features (0: the paper's plain SAC); needs --critic multimodal",
+    "critic": "privileged (an asymmetric actor-critic: the critics read the tip's offset from the true goal, "
+    "X - X_g, which Eq. 17's reward already uses, and the time; the actor, the policy that is deployed, keeps "
+    "the paper's inputs and gets an encoder of its own) or multimodal (the paper: the critics see what the "
+    "actor sees, through the encoder they share)", "device": "auto, cpu or cuda", "run_dir": "run directory",
     "eval_levels": "comma-separated error ranges (mm) evaluated after training",
     "report": "regenerate docs/RESULTS.md and its figures from these run directories (comma-separated glob "
     "patterns, e.g. 'runs/*'); evaluates what the report needs and has not got yet",
@@ -155,6 +156,8 @@ def check_args(a):
         raise ArgError(f"--lr and --gamma must be within (0, 1), not {a.lr} and {a.gamma}")
     if a.critic not in CRITICS:
         raise ArgError(f"--critic must be one of {', '.join(CRITICS)}, not {a.critic!r}")
+    if a.aux_weight > 0 and a.critic != "multimodal":
+        raise ArgError("--aux-weight trains the encoder the critics share with the actor: it needs --critic multimodal")
     if a.aux_weight < 0 or a.prior_weight < 0:
         raise ArgError(f"--aux-weight and --prior-weight must be at least 0, not {a.aux_weight} and {a.prior_weight}")
     if a.context not in sim.CONTEXTS:
@@ -197,6 +200,7 @@ def load_config(run_dir):
     try:
         with open(path) as f:
             d = json.load(f)
+        d.setdefault("critic", "multimodal")     # runs from before --critic had the paper's critics
         a = Args(**d)
     except FileNotFoundError:
         raise ArgError(f"--resume {run_dir!r}: no config.json there (not a run directory)")
@@ -696,6 +700,7 @@ LEVELS = (5.0, 10.0, 15.0, 20.0)
 def load_run(d):
     with open(os.path.join(d, "config.json")) as f:
         cfg = json.load(f)
+    cfg.setdefault("critic", "multimodal")             # runs from before --critic had the paper's critics
     with open(os.path.join(d, "metrics.csv")) as f:
         rows = list(csv.DictReader(f))
     ev = None

@@ -6,7 +6,7 @@
    observation variant, and for the TA-MRP with the encoder shared between actor and critics
    (the default), with an encoder of the actor's own, and with privileged critics (--critic
    privileged: no image encoder in the critics, the actor's own encoder).
-2. One training episode as tacrl.py runs it: the policy acting in the env for 120 steps at the
+2. One training episode as tacrl.py runs it by default: the policy acting in the env for 120 steps at the
    final 20 mm error range (camera on, an untrained actor), then 200 updates (the paper's count).
 Prints medians over `repeats`; the machine is shared and noisy, so compare ratios.
 """
@@ -65,7 +65,7 @@ def main():
         print(f"{obs:6s} critics' encoder {critic:10s}: median {np.median(r):5.1f} updates/s "
               f"(min {min(r):.1f}, max {max(r):.1f})")
     env = sim.AssemblyEnv("peg", e_r=sim.E_R_FINAL)
-    sac = policy.SAC("ts-ptv", tacrl.POSE_SCALE, sim.F_MAX6)
+    sac = tacrl.make_sac(tacrl.Args(), "cpu")          # the default training configuration
     t_env, t_upd = [], []
     for k in range(a.repeats):
         obs, _ = env.reset(seed=k)

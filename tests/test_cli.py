@@ -23,7 +23,8 @@ def run(*args):
                                   ["--eval", "no/such/policy.pt"], ["--resume", "no/such/run"],
                                   ["--eval-levels", "5,x"], ["--device", "tpu"], ["--threads", "-1"],
                                   ["--eval", "two-step", "--task", "gear"], ["--seeds", "0,x"], ["--seeds", "1,1"],
-                                  ["--aux-weight", "-1"], ["--report", "no/such/run*"]])
+                                  ["--aux-weight", "-1"], ["--report", "no/such/run*"], ["--critic", "oracle"],
+                                  ["--aux-weight", "1"]])          # aux needs --critic multimodal
 def test_bad_arguments_exit_2_with_one_line(args, capsys):
     import tacrl
     assert tacrl.main(args) == 2
