@@ -195,16 +195,20 @@ def check_args(a):
         a.run_dir = os.path.join("runs", f"{a.task}-{'vanilla-' if a.vanilla else ''}{a.obs}-{a.curriculum}-s{a.seed}")
 
 
+def read_config(run_dir):
+    """A run's config.json as a dict; runs from before --critic existed had the paper's critics."""
+    with open(os.path.join(run_dir, "config.json")) as f:
+        d = json.load(f)
+    d.setdefault("critic", "multimodal")
+    return d
+
+
 def load_config(run_dir):
-    path = os.path.join(run_dir, "config.json")
     try:
-        with open(path) as f:
-            d = json.load(f)
-        d.setdefault("critic", "multimodal")     # runs from before --critic had the paper's critics
-        a = Args(**d)
+        a = Args(**read_config(run_dir))
     except FileNotFoundError:
         raise ArgError(f"--resume {run_dir!r}: no config.json there (not a run directory)")
-    except (ValueError, TypeError) as e:
+    except (ValueError, TypeError, AttributeError) as e:      # AttributeError: not a JSON object
         raise ArgError(f"--resume {run_dir!r}: config.json is unreadable ({e})")
     a.run_dir, a.resume, a.eval = run_dir, run_dir, ""
     return a
@@ -380,6 +384,7 @@ POSE_SCALE = [sim.E_R_FINAL] * 3 + [sim.E_ROT_FINAL] * 3    # the encoder divide
 # curriculum's first levels visible in the loss.
 AUX_SCALE = np.array([0.005, 0.005, 0.025])
 AUX_DIMS = [0, 1, 3]                          # of info['goal_offset'] (x, y, z, yaw)
+EVAL_SEED = 1000                                               # eval seeds: EVAL_SEED + --seed, never a training seed
 CRITICS = ("multimodal", "privileged")
 STATE_DIM = 7                                 # the privileged critic's obs['state'], see critic_state
 
@@ -391,7 +396,6 @@ def critic_state(info):
     off = info["goal_offset"]
     return np.array([off[0] / 0.005, off[1] / 0.005, off[2] / 0.025, off[3] / 0.025, np.tanh(off[0] / 0.001),
                      np.tanh(off[1] / 0.001), info["t"] * sim.POLICY_HZ / sim.MAX_STEPS], np.float32)
-EVAL_SEED = 1000                                               # eval seeds: EVAL_SEED + --seed, never a training seed
 
 
 def pick_device(name):
@@ -698,9 +702,7 @@ LEVELS = (5.0, 10.0, 15.0, 20.0)
 
 
 def load_run(d):
-    with open(os.path.join(d, "config.json")) as f:
-        cfg = json.load(f)
-    cfg.setdefault("critic", "multimodal")             # runs from before --critic had the paper's critics
+    cfg = read_config(d)
     with open(os.path.join(d, "metrics.csv")) as f:
         rows = list(csv.DictReader(f))
     ev = None
