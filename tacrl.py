@@ -418,10 +418,11 @@ def save_atomic(obj, path):
     os.replace(path + ".tmp", path)
 
 
-def save_policy(path, sac, a):
-    """What evaluation needs: the encoder and the actor (the critics stay in ckpt.pt)."""
+def save_policy(path, sac, a, ex_r):
+    """What evaluation needs: the encoder, the actor (the critics stay in ckpt.pt) and the
+    exploration range Ex_r (m) the training ended with: the stiffness of Eq. 9 it learned to push."""
     d = {"format": "tacrl-policy-1", "task": a.task, "obs": a.obs, "roi": a.roi, "vanilla": a.vanilla,
-         "enc": sac.enc.state_dict(), "actor": sac.actor.state_dict()}
+         "ex_r": float(ex_r), "enc": sac.enc.state_dict(), "actor": sac.actor.state_dict()}
     if sac.actor_enc is not None:
         d["actor_enc"] = sac.actor_enc.state_dict()
     save_atomic(d, path)
@@ -447,7 +448,8 @@ def load_policy(path, task, device="cpu"):
     enc.eval()
     actor.eval()
     act = lambda obs: policy.act(enc, actor, obs, deterministic=True, device=device)   # noqa: E731
-    act.vanilla = bool(d.get("vanilla", False))    # evaluate it the way it was trained
+    act.vanilla = bool(d.get("vanilla", False))    # evaluate it the way it was trained:
+    act.ex_r = d.get("ex_r")                       # with its controller (None: older files, Ex_r = E_r)
     act.enc, act.actor = enc, actor                # for plots that look inside (behaviour_plot)
     return act
 
@@ -636,7 +638,7 @@ def train(a, log=lambda msg: print(msg, flush=True)):
             log(f"ep {ep + 1:4d}/{a.train_episodes}  R {ret:7.1f}  succ {int(success)}  sr15 {curr.success_rate:4.2f}  "
                 f"E_r {e_r * 1000:4.1f}mm  Ex_r {row['ex_r_mm']:4.1f}mm  delta {curr.delta:5.3f}  steps {len(acts):3d}  "
                 f"env {t_env:4.1f}s  upd {t_upd:4.1f}s  elapsed {fmt_time(elapsed)}  ETA {fmt_time(eta)}")
-        save_policy(os.path.join(a.run_dir, "policy.pt"), sac, a)
+        save_policy(os.path.join(a.run_dir, "policy.pt"), sac, a, ex_r=curr.ranges()[1])
         plot_curves(metrics_path, os.path.join(a.run_dir, "curves.png"), f"{a.task}, {a.obs}, {a.curriculum}")
         # -- Table-2-style evaluation with a seed never used in training
         act = load_policy(os.path.join(a.run_dir, "policy.pt"), a.task, device)
@@ -645,9 +647,9 @@ def train(a, log=lambda msg: print(msg, flush=True)):
                   "train_minutes": round((time.time() - t_start) / 60, 1), "rows": []}
         levels = sorted({float(x) for x in a.eval_levels.split(",")})
         for mm in levels:
-            env.set_ranges(mm / 1000)
+            env.set_ranges(mm / 1000, act.ex_r)      # E_r varies; the controller stays as trained
             row = evaluate(env, act, a.episodes, EVAL_SEED + a.seed, log=lambda *_: None)
-            row["error_mm"] = mm
+            row.update(error_mm=mm, ex_r_mm=round(env.ex_r * 1000, 3))
             result["rows"].append(row)
             log(format_row(f"TA-MRP {a.task} {mm:g}mm", row))
     finally:
@@ -765,23 +767,27 @@ def plot_groups(groups, key, ylabel, out, title):
 
 def eval_cached(run, context, levels=LEVELS, episodes=20, log=print):
     """Table-2 rows of a run's policy in `context`, evaluated once and kept in the run dir."""
-    path = os.path.join(run["dir"], f"eval-{context}.json")
-    if os.path.exists(path):
-        with open(path) as f:
-            rows = json.load(f)
-        if [r["error_mm"] for r in rows] == list(levels) and rows[0]["episodes"] == episodes:
-            return rows
     cfg = run["cfg"]
     act = load_policy(os.path.join(run["dir"], "policy.pt"), cfg["task"])
     env = sim.AssemblyEnv(cfg["task"], context, roi=cfg["roi"], clearance=cfg["clearance_mm"] / 1000,
-                          use_base_policy=not cfg.get("vanilla", False))
-    rows = []
+                          use_base_policy=not act.vanilla)
     try:
+        plan = []                               # (E_r, Ex_r) in mm per level, as the env clips them
         for mm in levels:
+            env.set_ranges(mm / 1000, act.ex_r)
+            plan.append((mm, round(env.ex_r * 1000, 3)))
+        path = os.path.join(run["dir"], f"eval-{context}.json")
+        if os.path.exists(path):
+            with open(path) as f:
+                rows = json.load(f)
+            if [(r["error_mm"], r.get("ex_r_mm")) for r in rows] == plan and rows[0]["episodes"] == episodes:
+                return rows
+        rows = []
+        for mm, ex in plan:
             log(f"  evaluating {run['dir']} in {context} at {mm:g} mm")
-            env.set_ranges(mm / 1000)
+            env.set_ranges(mm / 1000, ex / 1000)
             row = evaluate(env, act, episodes, EVAL_SEED + cfg["seed"], log=lambda *_: None)
-            rows.append({**row, "error_mm": mm})
+            rows.append({**row, "error_mm": mm, "ex_r_mm": ex})
     finally:
         env.close()
     with open(path, "w") as f:
@@ -803,7 +809,8 @@ def behaviour_plot(run, out, error_mm=10.0, seed=0):
     import torch
     cfg = run["cfg"]
     act = load_policy(os.path.join(run["dir"], "policy.pt"), cfg["task"])
-    env = sim.AssemblyEnv(cfg["task"], roi=cfg["roi"], e_r=error_mm / 1000, use_base_policy=not act.vanilla)
+    env = sim.AssemblyEnv(cfg["task"], roi=cfg["roi"], e_r=error_mm / 1000, ex_r=act.ex_r,
+                          use_base_policy=not act.vanilla)
     feats, poses, wrenches, acts, phase = [], [], [], [], []
 
     def policy_step(obs):                       # the policy, recording its image features and actions
@@ -1018,8 +1025,8 @@ def main(argv=None):
         print(f"\ninterrupted: every finished episode is saved{where}", file=sys.stderr)
         return 130
     print("config:", asdict(a))
-    env = sim.AssemblyEnv(a.task, a.context, e_r=a.error_mm / 1000, roi=a.roi, clearance=a.clearance_mm / 1000,
-                          gui=a.gui, use_base_policy=not getattr(act, "vanilla", False))
+    env = sim.AssemblyEnv(a.task, a.context, e_r=a.error_mm / 1000, ex_r=getattr(act, "ex_r", None), roi=a.roi,
+                          clearance=a.clearance_mm / 1000, gui=a.gui, use_base_policy=not getattr(act, "vanilla", False))
     if a.eval == "initial":
         act = lambda obs: np.zeros(6)          # noqa: E731  the hand-designed policy alone, F_d = 0
     elif a.eval == "two-step":
@@ -1040,8 +1047,8 @@ def main(argv=None):
         if video is not None:
             video.release()
         env.close()
-    row.update({"task": a.task, "policy": a.eval, "error_mm": a.error_mm, "context": a.context, "roi": a.roi,
-                "seed": a.seed})
+    row.update({"task": a.task, "policy": a.eval, "error_mm": a.error_mm, "ex_r_mm": round(env.ex_r * 1000, 3),
+                "context": a.context, "roi": a.roi, "seed": a.seed})
     print(format_row(f"{name} {a.task} {a.error_mm:g}mm", row))
     if a.json:
         with open(a.json, "w") as f:

@@ -86,12 +86,20 @@ def test_training_writes_every_file_resumes_and_evaluates(tmp_path, capsys):
     assert kept == [f"ep_{i + 1:06d}.npz" for i in range(keep, 3)], (steps, kept)
     ev = json.loads(open(os.path.join(run_dir, "eval.json")).read())
     assert [row["error_mm"] for row in ev["rows"]] == [0.0] and ev["eval_seed"] != ev["seed"]
-    # the saved policy evaluates like the initial one
+    # the saved policy keeps the exploration range it was trained with (Ex_r 2 mm, the floor, here) ...
+    import torch
+    pol = os.path.join(run_dir, "policy.pt")
+    d = torch.load(pol, weights_only=True)
+    assert ev["rows"][0]["ex_r_mm"] == round(max(d["ex_r"], 0.002) * 1000, 3) == 2.0
+    # ... and evaluates like the initial one, at any E_r with that Ex_r (set to 15 mm here to tell them apart)
+    d["ex_r"] = 0.015
+    torch.save(d, pol)
     out = tmp_path / "row.json"
     capsys.readouterr()                  # (in-process from here on: a subprocess costs seconds of imports)
-    assert tacrl.main(["--task", "peg", "--eval", os.path.join(run_dir, "policy.pt"), "--error-mm", "0",
-                       "--episodes", "1", "--json", str(out)]) == 0
-    assert "TA-MRP peg 0mm" in capsys.readouterr().out and json.loads(out.read_text())["episodes"] == 1
+    assert tacrl.main(["--task", "peg", "--eval", pol, "--error-mm", "0", "--episodes", "1", "--json", str(out)]) == 0
+    assert "TA-MRP peg 0mm" in capsys.readouterr().out
+    row = json.loads(out.read_text())
+    assert row["episodes"] == 1 and row["error_mm"] == 0 and row["ex_r_mm"] == 15.0
     # ... but not for the other task
     assert tacrl.main(["--task", "gear", "--eval", os.path.join(run_dir, "policy.pt")]) == 2
     assert "trained for --task peg" in capsys.readouterr().err
