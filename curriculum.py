@@ -15,14 +15,18 @@ Schedules (the paper's ablation, Sec. 5.1.4), as (E_r floor, Ex_r floor) in mm:
     g2-c10     E_r from 2 mm, Ex_r 10 mm until E_r passes 10 mm   (Curri-g2-c10)
     g2-c2      both from 2 mm                                    (Curri-g2-c2)
     none       E_r = Ex_r = E_final throughout, delta fixed at 1  (no curriculum)
-With E_r = max(g, delta E_final) and Ex_r = max(c, E_r) the one rule covers all of them.
+With E_r = max(g, delta E_final) and Ex_r = max(c, E_r) the one rule covers all of them. One more,
+for the observation ablation, which "trained each policy variant under an increasing error range
+and a constant exploration range of 10 mm":
+    ex10       E_r grows from 0 with delta, Ex_r held at 10 mm whatever E_r is
 """
 from collections import deque
 
 import numpy as np
 
 SCHEDULES = {"adaptive": (0.0, 0.0), "g2-c30": (0.002, 0.030), "g2-c10": (0.002, 0.010), "g2-c2": (0.002, 0.002)}
-KINDS = ("adaptive", "none", "g2-c30", "g2-c10", "g2-c2")
+KINDS = ("adaptive", "none", "g2-c30", "g2-c10", "g2-c2", "ex10")
+EX_FIXED = 0.010                    # ex10's exploration range, m
 
 
 class Curriculum:
@@ -47,6 +51,8 @@ class Curriculum:
         """(E_r, Ex_r) in m for the next episode."""
         if self.kind == "none":
             return self.final, self.final
+        if self.kind == "ex10":
+            return self.delta * self.final, EX_FIXED
         g, c = SCHEDULES[self.kind]
         e_r = max(g, self.delta * self.final)
         return e_r, max(c, e_r)

@@ -85,7 +85,8 @@ HELP = {
     "clearance_mm": "diametral clearance of the peg / gear bore, mm", "seed": "random seed",
     "json": "write the evaluation row to this JSON file", "video": "record the first evaluation episode to this .mp4",
     "gui": "open the PyBullet GUI", "train_episodes": "training episodes",
-    "obs": "observations: pt, ts-pt, ts-ptv, or v (image only: the visual baseline)", "curriculum": "adaptive, none, g2-c30, g2-c10 or g2-c2",
+    "obs": "observations: pt, ts-pt, ts-ptv, or v (image only: the visual baseline)", "curriculum": "adaptive, none, g2-c30, g2-c10, g2-c2 or ex10 (E_r adaptive, Ex_r "
+    "held at 10 mm: the observation ablation)",
     "updates": "gradient steps after each episode",
     "warmup": "episodes of uniform random actions before the first update",
     "prior_weight": "weight of the actor's penalty on |mean action|^2, which keeps the residual near F_d = 0 "
@@ -195,10 +196,14 @@ def check_args(a):
         a.run_dir = os.path.join("runs", f"{a.task}-{'vanilla-' if a.vanilla else ''}{a.obs}-{a.curriculum}-s{a.seed}")
 
 
+def read_json(path):
+    with open(path) as f:
+        return json.load(f)
+
+
 def read_config(run_dir):
     """A run's config.json as a dict; runs from before --critic existed had the paper's critics."""
-    with open(os.path.join(run_dir, "config.json")) as f:
-        d = json.load(f)
+    d = read_json(os.path.join(run_dir, "config.json"))
     d.setdefault("critic", "multimodal")
     return d
 
@@ -707,10 +712,7 @@ def load_run(d):
     cfg = read_config(d)
     with open(os.path.join(d, "metrics.csv")) as f:
         rows = list(csv.DictReader(f))
-    ev = None
-    if os.path.exists(os.path.join(d, "eval.json")):
-        with open(os.path.join(d, "eval.json")) as f:
-            ev = json.load(f)
+    ev = read_json(os.path.join(d, "eval.json")) if os.path.exists(os.path.join(d, "eval.json")) else None
     m = {k: np.array([float(r[k]) for r in rows]) for k in ("episode", "return", "sr15", "e_r_mm", "ex_r_mm",
                                                              "elapsed_s")}
     return {"dir": d, "cfg": cfg, "m": m, "eval": ev}
@@ -734,6 +736,17 @@ def method_of(cfg):
     return name + (f" ({', '.join(changed)})" if changed else "")
 
 
+def command_of(cfg):
+    """The training command that reproduces a run: the flags whose values differ from the defaults."""
+    default, flags = Args(), ["python tacrl.py"]
+    for k, v in cfg.items():
+        if k in ("run_dir", "threads", "device", "resume", "seeds", "report", "report_dir") or not hasattr(default, k):
+            continue
+        if v != getattr(default, k) or k == "task":
+            flags.append(f"--{k.replace('_', '-')}" + ("" if v is True else f" {v:g}" if isinstance(v, float) else f" {v}"))
+    return " ".join(flags)
+
+
 def bootstrap_band(curves, n=1000, seed=0):
     """curves: seeds x episodes -> mean and the 95% bootstrap interval of the mean over seeds."""
     c = np.array([x[:min(map(len, curves))] for x in curves])
@@ -742,27 +755,98 @@ def bootstrap_band(curves, n=1000, seed=0):
     return c.mean(0), np.percentile(boots, 2.5, 0), np.percentile(boots, 97.5, 0)
 
 
-def plot_groups(groups, key, ylabel, out, title):
-    """One line (mean over seeds) and band (95% bootstrap) per group of runs, against episode."""
+def smooth(x, k=15):
+    """Moving average over k episodes (shorter at the start), as the paper smooths its curves."""
+    c = np.cumsum(np.insert(np.asarray(x, float), 0, 0.0))
+    n = np.minimum(np.arange(1, len(x) + 1), k)
+    return (c[1:] - c[np.arange(1, len(x) + 1) - n]) / n
+
+
+CURVES = {"return": "cumulative reward (mean of 15)", "sr15": "success rate (last 15)",
+          "e_r_mm": "guidance error range E_r (mm)", "ex_r_mm": "exploration range Ex_r (mm)"}
+
+
+def plot_groups(groups, keys, out, title):
+    """One panel per key; in each, one line (mean over seeds) and band (95% bootstrap over seeds)
+    per group of runs, against episode (the paper's Fig. 9-11)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    fig, ax = plt.subplots(figsize=(6.4, 3.6))
-    for name, runs in groups.items():
-        mean, lo, hi = bootstrap_band([r["m"][key] for r in runs])
-        ep = np.arange(1, len(mean) + 1)
-        seeds = sorted({r["cfg"]["seed"] for r in runs})
-        line, = ax.plot(ep, mean, label=f"{name} (seed{'s' * (len(seeds) > 1)} {', '.join(map(str, seeds))})")
-        if len(runs) > 1:
-            ax.fill_between(ep, lo, hi, alpha=0.2, color=line.get_color())
-    ax.set_xlabel("episode")
-    ax.set_ylabel(ylabel)
-    ax.set_title(title, fontsize=10)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=7)
+    fig, axs = plt.subplots(1, len(keys), figsize=(4.2 * len(keys), 3.6), squeeze=False)
+    for ax, key in zip(axs[0], keys):
+        for name, runs in groups.items():
+            curves = [smooth(r["m"][key]) if key == "return" else r["m"][key] for r in runs]
+            mean, lo, hi = bootstrap_band(curves)
+            ep = np.arange(1, len(mean) + 1)
+            seeds = sorted({r["cfg"]["seed"] for r in runs})
+            line, = ax.plot(ep, mean, lw=1.2, label=f"{name} (seed{'s' * (len(seeds) > 1)} {', '.join(map(str, seeds))})")
+            if len(runs) > 1:
+                ax.fill_between(ep, lo, hi, alpha=0.2, color=line.get_color())
+        ax.set_xlabel("episode")
+        ax.set_ylabel(CURVES[key])
+        ax.grid(alpha=0.3)
+    axs[0][0].legend(fontsize=7)
+    fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     fig.savefig(out, dpi=110)
     plt.close(fig)
+
+
+def plot_context_bars(bars, out, title):
+    """Fig. 12: mean cumulative reward (over the evaluated error ranges and trials) per context,
+    one group of bars per ROI. bars: {roi label: {context: [mean, std]}}."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    contexts = list(next(iter(bars.values())))
+    fig, ax = plt.subplots(figsize=(6.4, 3.6))
+    w = 0.8 / len(contexts)
+    for k, ctx in enumerate(contexts):
+        xs = np.arange(len(bars)) + (k - (len(contexts) - 1) / 2) * w
+        ax.bar(xs, [bars[r][ctx][0] for r in bars], w, yerr=[bars[r][ctx][1] for r in bars], capsize=3, label=ctx)
+    ax.set_xticks(np.arange(len(bars)))
+    ax.set_xticklabels(list(bars))
+    ax.axhline(0, color="k", lw=0.6)
+    ax.set_ylabel("cumulative reward per episode")
+    ax.set_title(title, fontsize=10)
+    ax.grid(alpha=0.3, axis="y")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+
+
+OBS_NAMES = {"pt": "P-T", "ts-pt": "Time-series P-T", "ts-ptv": "Time-series P-T-V"}
+
+
+def families(cfg):
+    """The paper's comparisons a run takes part in: {figure family: curve label}. Only runs with
+    the default learning settings (method_of without a suffix) are compared."""
+    name = method_of(cfg)
+    if "(" in name:
+        return {}
+    ours_but = lambda **kw: all(cfg[k] == v for k, v in {"obs": "ts-ptv", "curriculum": "adaptive", "roi": "task",
+                                                         "error_mm": 20.0, "vanilla": False, **kw}.items())
+    fam = {}
+    if name in ("ours", "vanilla", "visual"):
+        fam["methods"] = name
+    if cfg["curriculum"] == "ex10" and cfg["roi"] == "task" and not cfg.get("vanilla"):
+        fam["obs"] = OBS_NAMES.get(cfg["obs"], cfg["obs"])
+    if ours_but(curriculum=cfg["curriculum"], error_mm=cfg["error_mm"]) and (
+            cfg["curriculum"] == "none" or cfg["error_mm"] == 30.0) and cfg["curriculum"] != "ex10":
+        fam["curriculum"] = ("no curriculum" if cfg["curriculum"] == "none" else f"curriculum {cfg['curriculum']}") \
+            + f", {cfg['error_mm']:g} mm"
+    if ours_but(roi=cfg["roi"]):
+        fam["roi"] = "task attention (Eq. 11)" if cfg["roi"] == "task" else f"ROI {cfg['roi']}"
+    return fam
+
+
+FAMILIES = {   # family: (title, curves, the paper's figure)
+    "methods": ("ours against the learned baselines", ("return", "sr15", "e_r_mm"), "Table 1"),
+    "obs": ("observation ablation: Ex_r held at 10 mm, E_r adaptive", ("sr15", "e_r_mm"), "Fig. 9"),
+    "curriculum": ("curriculum ablation", ("return", "sr15", "e_r_mm", "ex_r_mm"), "Fig. 10"),
+    "roi": ("ROI ablation", ("return", "sr15", "e_r_mm"), "Fig. 11"),
+}
 
 
 def eval_cached(run, context, levels=LEVELS, episodes=20, log=print):
@@ -777,9 +861,8 @@ def eval_cached(run, context, levels=LEVELS, episodes=20, log=print):
             env.set_ranges(mm / 1000, act.ex_r)
             plan.append((mm, round(env.ex_r * 1000, 3)))
         path = os.path.join(run["dir"], f"eval-{context}.json")
-        if os.path.exists(path):
-            with open(path) as f:
-                rows = json.load(f)
+        for rows in ([run["eval"]["rows"]] if context == "train" and run["eval"] else []) + \
+                ([read_json(path)] if os.path.exists(path) else []):     # eval.json, then this cache
             if [(r["error_mm"], r.get("ex_r_mm")) for r in rows] == plan and rows[0]["episodes"] == episodes:
                 return rows
         rows = []
@@ -858,13 +941,13 @@ def write_report(patterns, out_dir="docs", log=print):
     md = ["# Results", "", f"Regenerated by `python tacrl.py --report \"{patterns}\"` from {len(runs)} run "
           "directories. Every number below was measured by running this code on a 2-core CPU machine; "
           "the paper's numbers stand beside ours.", "", "## The runs", "",
-          "| run | task | method | seed | episodes | minutes | final E_r (mm) | max E_r (mm) | eval SR 5/10/15/20 mm |",
-          "|---|---|---|---|---|---|---|---|---|"]
+          "| run | command | method | episodes | minutes (threads) | final E_r (mm) | max E_r (mm) | eval SR 5/10/15/20 mm |",
+          "|---|---|---|---|---|---|---|---|"]
     for r in runs:
         ev = r["eval"]
         srs = " / ".join(f"{row['success_rate']:.2f}" for row in ev["rows"]) if ev else "not finished"
-        md.append(f"| `{r['dir']}` | {r['cfg']['task']} | {method_of(r['cfg'])} | {r['cfg']['seed']} | "
-                  f"{len(r['m']['episode'])} | {r['m']['elapsed_s'][-1] / 60:.1f} | "
+        md.append(f"| `{r['dir']}` | `{command_of(r['cfg'])}` | {method_of(r['cfg'])} | "
+                  f"{len(r['m']['episode'])} | {r['m']['elapsed_s'][-1] / 60:.1f} ({r['cfg'].get('threads') or 'all'}) | "
                   f"{r['m']['e_r_mm'][-1]:.1f} | {r['m']['e_r_mm'].max():.1f} | {srs} |")
     # -- Table 1: peg at 20 mm
     md += ["", "## Table 1: peg-in-hole at 20 mm error (20 trials, evaluation seeds never used in training)", "",
@@ -872,8 +955,7 @@ def write_report(patterns, out_dir="docs", log=print):
            "|---|---|---|---|---|---|"]
     path = os.path.join(out_dir, "two-step-peg-20mm.json")
     if os.path.exists(path):
-        with open(path) as f:
-            ts_row = json.load(f)
+        ts_row = read_json(path)
     else:
         log("evaluating the two-step baseline (peg, 20 mm, 20 episodes)")
         env = sim.AssemblyEnv("peg", e_r=0.02)
@@ -914,23 +996,58 @@ def write_report(patterns, out_dir="docs", log=print):
             continue
         best = ours[0]                      # the first seed stands for the method in the unseen contexts
         for ctx in ("train",) + UNSEEN:
-            rows = best["eval"]["rows"] if ctx == "train" else eval_cached(best, ctx, log=log)
+            rows = eval_cached(best, ctx, log=log)
             cells = [f"{x['success_rate']:.2f} / {cell(x, 'completion_time_s', '{:.1f}').split(' +-')[0]} / "
                      f"{x['cumulative_reward'][0]:.1f}" for x in rows if x["error_mm"] in LEVELS]
             md.append(f"| {task} | {ctx} | {' | '.join(cells)} | {PAPER_TABLE2.get((task, ctx), '-')} |")
-    # -- figures
+    # -- learning curves: one figure per comparison of the paper and task
     figs = []
     for task in ("peg", "gear"):
         groups = {}
         for r in runs:
             if r["cfg"]["task"] == task:
                 groups.setdefault(method_of(r["cfg"]), []).append(r)
-        if groups:
-            for key, label in (("e_r_mm", "guidance error range E_r (mm)"), ("sr15", "success rate (last 15)")):
-                name = f"fig-{task}-{key.split('_')[0]}.png"
-                plot_groups(groups, key, label, os.path.join(out_dir, name), f"{task}: every method and ablation run")
-                figs.append((name, f"{task}: {label} against episode, mean over seeds with a 95% bootstrap band "
-                                   "(the paper's Fig. 9-11 show these per ablation)"))
+        if groups:                         # every run of the task, grouped by what it trained
+            name = f"fig-{task}-runs.png"
+            plot_groups(groups, ("sr15", "e_r_mm"), os.path.join(out_dir, name), f"{task}: every run")
+            figs.append((name, f"{task}: every run, grouped by method and setting"))
+        for fam, (title, keys, paper_fig) in FAMILIES.items():
+            groups = {}
+            for r in runs:
+                label = families(r["cfg"]).get(fam)
+                if r["cfg"]["task"] == task and label:
+                    groups.setdefault(label, []).append(r)
+            if not groups or (fam != "methods" and len(groups) < 2):
+                continue
+            name = f"fig-{task}-{fam}.png"
+            plot_groups(groups, keys, os.path.join(out_dir, name), f"{task}: {title}")
+            figs.append((name, f"{task}, {title} (the paper's {paper_fig}): mean over seeds, 95% bootstrap band "
+                               "where there are several"))
+    # -- context generalization (Fig. 12): task-attention ROI against the full view, mean cumulative reward
+    for task in ("peg", "gear"):
+        bars = {}
+        for roi in ("task", "full"):
+            r = next((r for r in runs if r["cfg"]["task"] == task and r["eval"]
+                      and families(r["cfg"]).get("roi") and r["cfg"]["roi"] == roi), None)
+            if r is None:
+                continue
+            bars[families(r["cfg"])["roi"]] = {}
+            for ctx in ("train",) + UNSEEN:
+                rows = eval_cached(r, ctx, log=log)
+                cr = np.array([x["cumulative_reward"][0] for x in rows])
+                bars[families(r["cfg"])["roi"]][ctx] = [float(cr.mean()), float(cr.std())]
+        if len(bars) == 2:
+            name = f"fig-{task}-contexts.png"
+            plot_context_bars(bars, os.path.join(out_dir, name), f"{task}: training context and two unseen ones")
+            figs.append((name, f"{task}: mean cumulative reward over 5/10/15/20 mm (20 trials each) in the training "
+                               "context and two unseen ones, task-attention ROI against the full view (the paper's "
+                               "Fig. 12; bars: spread over the four error ranges)"))
+            md += ["", f"## Context generalization, {task} (the paper's Fig. 12)", "",
+                   "Mean cumulative reward per episode over 5/10/15/20 mm, 20 trials each.", "",
+                   "| ROI | " + " | ".join(("train",) + UNSEEN) + " |", "|---" * (1 + len(UNSEEN) + 1) + "|"]
+            md += [f"| {roi} | " + " | ".join(f"{v[ctx][0]:.1f}" for ctx in v) + " |" for roi, v in bars.items()]
+            md += ["", "The paper (real robot, average cumulative reward): task attention 61.19 -> 54.73 (new "
+                   "background), 69.23 -> 46.46 (new location); full view 61.12 -> -23.06 and 59.51 -> -14.65."]
     ours_peg = [r for r in runs if r["cfg"]["task"] == "peg" and method_of(r["cfg"]) == "ours" and r["eval"]]
     if ours_peg:
         behaviour_plot(ours_peg[0], os.path.join(out_dir, "fig-behaviour.png"))
@@ -938,6 +1055,10 @@ def write_report(patterns, out_dir="docs", log=print):
     md += ["", "## Figures", ""]
     for name, caption in figs:
         md += [f"![{caption}]({name})", "", f"*{caption}*", ""]
+    notes = os.path.join(out_dir, "results-notes.md")     # the hand-written reading of these numbers
+    if os.path.exists(notes):
+        with open(notes) as f:
+            md += ["", f.read().strip()]
     with open(os.path.join(out_dir, "RESULTS.md"), "w") as f:
         f.write("\n".join(md) + "\n")
     log(f"wrote {out_dir}/RESULTS.md and {len(figs)} figures")

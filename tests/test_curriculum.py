@@ -61,6 +61,10 @@ def test_fixed_schedules_of_the_ablation():
     assert e_r > 0.010 and ex_r == pytest.approx(e_r)
     c2 = cur.Curriculum("g2-c2", final=0.030)
     assert c2.ranges() == (pytest.approx(0.002), pytest.approx(0.002))
+    ex10 = cur.Curriculum("ex10", final=0.020)        # the observation ablation: Ex_r stays at 10 mm
+    assert ex10.ranges() == (0.0, 0.010)
+    run(ex10, [True] * 100)
+    assert ex10.ranges() == (pytest.approx(0.020), 0.010)
 
 
 def test_state_round_trip_and_mismatch():
