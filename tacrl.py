@@ -731,7 +731,7 @@ def method_of(cfg):
         name = f"{cfg['obs']}, {cfg['curriculum']} to {cfg['error_mm']:g} mm, roi {cfg['roi']}"
     default = Args()
     changed = [f"{k} {cfg[k]}" for k in ("critic", "updates", "warmup", "batch", "lr", "gamma", "aux_weight",
-                                         "prior_weight", "target_entropy", "train_episodes")
+                                         "prior_weight", "target_entropy")
                if k in cfg and cfg[k] != getattr(default, k)]
     return name + (f" ({', '.join(changed)})" if changed else "")
 
@@ -907,7 +907,7 @@ def behaviour_plot(run, out, error_mm=10.0, seed=0):
         poses.append(info["goal_offset"])
         wrenches.append(info["f_world"])
         phase.append(2 if info["depth"] > 0.001 else 1 if np.abs(info["f_world"][:3]).max() > 0.5 else 0)
-    sim.run_episode(env, policy_step, seed=EVAL_SEED * 7 + seed, on_step=on_step)
+    term, _, _ = sim.run_episode(env, policy_step, seed=EVAL_SEED * 7 + seed, on_step=on_step)
     env.close()
     phase = np.maximum.accumulate(phase)        # free -> search after contact -> insertion
     norm = lambda x: np.array(x) / np.maximum(np.abs(np.array(x)).max(0), 1e-9)   # noqa: E731
@@ -951,8 +951,8 @@ def write_report(patterns, out_dir="docs", log=print):
                   f"{r['m']['e_r_mm'][-1]:.1f} | {r['m']['e_r_mm'].max():.1f} | {srs} |")
     # -- Table 1: peg at 20 mm
     md += ["", "## Table 1: peg-in-hole at 20 mm error (20 trials, evaluation seeds never used in training)", "",
-           "| method | SR | CT (s) | peak contact force x / y / z (N) | cumulative reward | paper: SR, CT, force x/y/z |",
-           "|---|---|---|---|---|---|"]
+           "| method | training episodes | SR | CT (s) | peak contact force x / y / z (N) | cumulative reward | "
+           "paper: SR, CT, force x/y/z |", "|---|---|---|---|---|---|---|"]
     path = os.path.join(out_dir, "two-step-peg-20mm.json")
     if os.path.exists(path):
         ts_row = read_json(path)
@@ -965,14 +965,14 @@ def write_report(patterns, out_dir="docs", log=print):
         env.close()
         with open(path, "w") as f:
             json.dump(ts_row, f, indent=2)
-    table1 = [("two-step", [ts_row])]
+    table1 = [("two-step", [ts_row], "-")]
     for name in ("vanilla", "visual", "ours"):
-        rows = [row for r in runs if r["cfg"]["task"] == "peg" and method_of(r["cfg"]) == name and r["eval"]
-                for row in r["eval"]["rows"] if row["error_mm"] == 20.0]
-        table1.append((name, rows))
-    for name, rows in table1:
+        done = [r for r in runs if r["cfg"]["task"] == "peg" and method_of(r["cfg"]) == name and r["eval"]]
+        rows = [row for r in done for row in r["eval"]["rows"] if row["error_mm"] == 20.0]
+        table1.append((name, rows, ", ".join(sorted({str(len(r["m"]["episode"])) for r in done}))))
+    for name, rows, episodes in table1:
         if not rows:
-            md.append(f"| {name} | not run | | | | {PAPER_TABLE1[name]} |")
+            md.append(f"| {name} | | not run | | | | {PAPER_TABLE1[name]} |")
             continue
         sr = np.array([x["success_rate"] for x in rows])
         if len(rows) == 1:
@@ -984,7 +984,7 @@ def write_report(patterns, out_dir="docs", log=print):
                         for k in ("contact_force_x_N", "contact_force_y_N", "contact_force_z_N"))
         cr = f"{np.mean([x['cumulative_reward'][0] for x in rows]):.1f}"
         srs = f"{sr.mean():.2f}" + (f" +- {sr.std():.2f} ({len(rows)} seeds)" if len(rows) > 1 else "")
-        md.append(f"| {name} | {srs} | {ct} | {fx} | {cr} | {PAPER_TABLE1[name]} |")
+        md.append(f"| {name} | {episodes} | {srs} | {ct} | {fx} | {cr} | {PAPER_TABLE1[name]} |")
     # -- Table 2: ours in the training and unseen contexts
     md += ["", "## Table 2: our policy in the training context and two unseen ones", "",
            "Success rate / completion time (s) / cumulative reward at 5, 10, 15, 20 mm error, 20 trials each.", "",
