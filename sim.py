@@ -108,6 +108,11 @@ WHITE, GREY, DARK, BLACK = (0.92, 0.92, 0.9, 1), (0.55, 0.55, 0.55, 1), (0.2, 0.
 ORANGE, BRASS, TEAL = (0.95, 0.5, 0.1, 1), (0.8, 0.65, 0.2, 1), (0.1, 0.5, 0.55, 1)
 
 
+def exploration_range(e_r, ex_r=None):
+    """The Ex_r (m) the env runs with: ex_r, or E_r where none is given, floored at EX_MIN."""
+    return max(float(e_r if ex_r is None else ex_r), EX_MIN)
+
+
 # ---------------------------------------------------------------- contexts (Sec. 5.1.4, Fig. 12)
 @dataclass(frozen=True)
 class Context:
@@ -649,7 +654,7 @@ class AssemblyEnv:
     def set_ranges(self, e_r, ex_r=None):
         """E_r (guidance error) and Ex_r (exploration) in m; the curriculum calls this between episodes."""
         self.e_r = float(e_r)
-        self.ex_r = max(float(self.e_r if ex_r is None else ex_r), EX_MIN)
+        self.ex_r = exploration_range(e_r, ex_r)
 
     @property
     def dt(self):

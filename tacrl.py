@@ -255,6 +255,19 @@ def evaluate(env, act, episodes, seed, video=None, log=print):
             "episodes": episodes}
 
 
+def evaluate_levels(env, act, levels, episodes, seed, log=lambda row: None):
+    """Table-2 rows: `evaluate` at each error range E_r in `levels` (mm), with Ex_r held where the
+    policy's training ended (act.ex_r: the controller stays as trained; None: Ex_r = E_r)."""
+    rows = []
+    for mm in levels:
+        env.set_ranges(mm / 1000, act.ex_r)
+        row = evaluate(env, act, episodes, seed, log=lambda *_: None)
+        row.update(error_mm=mm, ex_r_mm=round(env.ex_r * 1000, 3))
+        rows.append(row)
+        log(row)
+    return rows
+
+
 def format_row(name, row):
     ms = lambda k, f="{:.2f}": "-" if row[k] is None else f"{f.format(row[k][0])} +- {f.format(row[k][1])}"
     return (f"{'policy':<22} {'SR':>5}  {'CT (s)':>14}  {'Fx (N)':>14}  {'Fy (N)':>14}  {'Fz (N)':>14}  {'CR':>16}\n"
@@ -630,7 +643,7 @@ def train(a, log=lambda msg: print(msg, flush=True)):
             mean = {k: float(np.mean([l[k] for l in losses])) if losses else float("nan")
                     for k in ("q_loss", "pi_loss", "alpha", "entropy", "aux_loss")}
             row = {"episode": ep + 1, "return": round(ret, 3), "success": int(success), "sr15": round(curr.success_rate, 3),
-                   "e_r_mm": round(e_r * 1000, 3), "ex_r_mm": round(max(ex_r, sim.EX_MIN) * 1000, 3),
+                   "e_r_mm": round(e_r * 1000, 3), "ex_r_mm": round(env.ex_r * 1000, 3),
                    "delta": round(curr.delta, 4), "steps": len(acts), "total_steps": total_steps, "updates": len(losses),
                    **{k: round(v, 5) for k, v in mean.items()}, "env_s": round(t_env, 2), "update_s": round(t_upd, 2),
                    "elapsed_s": round(elapsed, 1)}
@@ -651,12 +664,8 @@ def train(a, log=lambda msg: print(msg, flush=True)):
                   "seed": a.seed, "eval_seed": EVAL_SEED + a.seed, "train_episodes": a.train_episodes,
                   "train_minutes": round((time.time() - t_start) / 60, 1), "rows": []}
         levels = sorted({float(x) for x in a.eval_levels.split(",")})
-        for mm in levels:
-            env.set_ranges(mm / 1000, act.ex_r)      # E_r varies; the controller stays as trained
-            row = evaluate(env, act, a.episodes, EVAL_SEED + a.seed, log=lambda *_: None)
-            row.update(error_mm=mm, ex_r_mm=round(env.ex_r * 1000, 3))
-            result["rows"].append(row)
-            log(format_row(f"TA-MRP {a.task} {mm:g}mm", row))
+        result["rows"] = evaluate_levels(env, act, levels, a.episodes, EVAL_SEED + a.seed,
+                                         log=lambda row: log(format_row(f"TA-MRP {a.task} {row['error_mm']:g}mm", row)))
     finally:
         env.close()
     with open(os.path.join(a.run_dir, "eval.json"), "w") as f:
@@ -850,27 +859,21 @@ FAMILIES = {   # family: (title, curves, the paper's figure)
 
 
 def eval_cached(run, context, levels=LEVELS, episodes=20, log=print):
-    """Table-2 rows of a run's policy in `context`, evaluated once and kept in the run dir."""
+    """Table-2 rows of a run's policy in `context`, evaluated once and kept in the run dir (the
+    training context's come from eval.json when it holds the same levels)."""
     cfg = run["cfg"]
     act = load_policy(os.path.join(run["dir"], "policy.pt"), cfg["task"])
+    plan = [(mm, round(sim.exploration_range(mm / 1000, act.ex_r) * 1000, 3)) for mm in levels]   # (E_r, Ex_r), mm
+    path = os.path.join(run["dir"], f"eval-{context}.json")
+    for rows in ([run["eval"]["rows"]] if context == "train" and run["eval"] else []) + \
+            ([read_json(path)] if os.path.exists(path) else []):     # eval.json, then this cache
+        if [(r["error_mm"], r.get("ex_r_mm")) for r in rows] == plan and rows[0]["episodes"] == episodes:
+            return rows
+    log(f"  evaluating {run['dir']} in {context} at {', '.join(f'{mm:g}' for mm in levels)} mm")
     env = sim.AssemblyEnv(cfg["task"], context, roi=cfg["roi"], clearance=cfg["clearance_mm"] / 1000,
                           use_base_policy=not act.vanilla)
     try:
-        plan = []                               # (E_r, Ex_r) in mm per level, as the env clips them
-        for mm in levels:
-            env.set_ranges(mm / 1000, act.ex_r)
-            plan.append((mm, round(env.ex_r * 1000, 3)))
-        path = os.path.join(run["dir"], f"eval-{context}.json")
-        for rows in ([run["eval"]["rows"]] if context == "train" and run["eval"] else []) + \
-                ([read_json(path)] if os.path.exists(path) else []):     # eval.json, then this cache
-            if [(r["error_mm"], r.get("ex_r_mm")) for r in rows] == plan and rows[0]["episodes"] == episodes:
-                return rows
-        rows = []
-        for mm, ex in plan:
-            log(f"  evaluating {run['dir']} in {context} at {mm:g} mm")
-            env.set_ranges(mm / 1000, ex / 1000)
-            row = evaluate(env, act, episodes, EVAL_SEED + cfg["seed"], log=lambda *_: None)
-            rows.append({**row, "error_mm": mm, "ex_r_mm": ex})
+        rows = evaluate_levels(env, act, levels, episodes, EVAL_SEED + cfg["seed"])
     finally:
         env.close()
     with open(path, "w") as f:
@@ -1031,11 +1034,10 @@ def write_report(patterns, out_dir="docs", log=print):
                       and families(r["cfg"]).get("roi") and r["cfg"]["roi"] == roi), None)
             if r is None:
                 continue
-            bars[families(r["cfg"])["roi"]] = {}
+            bars[families(r["cfg"])["roi"]] = by_ctx = {}
             for ctx in ("train",) + UNSEEN:
-                rows = eval_cached(r, ctx, log=log)
-                cr = np.array([x["cumulative_reward"][0] for x in rows])
-                bars[families(r["cfg"])["roi"]][ctx] = [float(cr.mean()), float(cr.std())]
+                cr = np.array([x["cumulative_reward"][0] for x in eval_cached(r, ctx, log=log)])
+                by_ctx[ctx] = [float(cr.mean()), float(cr.std())]
         if len(bars) == 2:
             name = f"fig-{task}-contexts.png"
             plot_context_bars(bars, os.path.join(out_dir, name), f"{task}: training context and two unseen ones")
