@@ -69,7 +69,7 @@ class Args:
     device: str = "auto"         # auto, cpu or cuda
     threads: int = 0             # torch CPU threads (0: torch's default, one per core)
     eval_levels: str = "5,10,15,20"  # error ranges (mm) of the evaluation after training (Table 2)
-    run_dir: str = ""            # where the run lives; default runs/<task>-<obs>-<curriculum>-s<seed>
+    run_dir: str = ""            # where the run lives; default runs/<task>-<obs>-<curriculum>[-e<mm>][-roi-<roi>]-s<seed>
     seeds: str = ""              # e.g. 0,1,2: independent training runs in parallel processes, one a seed
     report: str = ""             # regenerate docs/RESULTS.md from these run dirs (comma-separated globs)
     report_dir: str = "docs"     # where --report writes RESULTS.md and its figures
@@ -193,7 +193,15 @@ def check_args(a):
         if not seeds or len(set(seeds)) != len(seeds) or a.eval or a.resume:
             raise ArgError(f"--seeds must be distinct comma-separated integers, for training only, not {a.seeds!r}")
     if not a.run_dir:
-        a.run_dir = os.path.join("runs", f"{a.task}-{'vanilla-' if a.vanilla else ''}{a.obs}-{a.curriculum}-s{a.seed}")
+        a.run_dir = default_run_dir(a)
+
+
+def default_run_dir(a):
+    """runs/<task>-[vanilla-]<obs>-<curriculum>[-e<E_r mm>][-roi-<roi>]-s<seed>: the ablation's flags
+    that change the run are in its name, so that no run overwrites another's directory."""
+    name = f"{a.task}-{'vanilla-' if a.vanilla else ''}{a.obs}-{a.curriculum}"
+    name += (f"-e{a.error_mm:g}" if a.error_mm != Args.error_mm else "") + (f"-roi-{a.roi}" if a.roi != "task" else "")
+    return os.path.join("runs", f"{name}-s{a.seed}")
 
 
 def read_json(path):

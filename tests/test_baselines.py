@@ -40,3 +40,11 @@ def test_seed_commands_one_run_dir_and_thread_share_per_seed():
     cmd = jobs[1][2]
     assert "--seeds" not in cmd and cmd[cmd.index("--seed") + 1] == "1" and cmd[cmd.index("--threads") + 1] == "1"
     assert cmd[cmd.index("--train-episodes") + 1] == "5" and cmd[cmd.index("--task") + 1] == "gear"
+
+
+def test_ablation_runs_get_run_dirs_of_their_own():
+    dirs = [tacrl.parse_args(argv).run_dir for argv in (
+        [], ["--roi", "full"], ["--curriculum", "none", "--error-mm", "10"], ["--curriculum", "none"],
+        ["--curriculum", "none", "--error-mm", "30", "--roi", "200", "--seed", "1"])]
+    assert dirs == ["runs/peg-ts-ptv-adaptive-s0", "runs/peg-ts-ptv-adaptive-roi-full-s0",
+                    "runs/peg-ts-ptv-none-e10-s0", "runs/peg-ts-ptv-none-s0", "runs/peg-ts-ptv-none-e30-roi-200-s1"]
