@@ -76,7 +76,7 @@ E_ROT_FINAL = 0.1                                   # error about z at the final
 EX_MIN = 0.002                                      # floor of the exploration range, m (K stays finite)
 EX_ROT = (0.002, 0.002)                             # exploration about x, y, rad: stiff, so a residual torque
                                                     # cannot tilt the peg enough to jam it (0.05 mm over 25 mm)
-APPROACH = 0.030                                    # X_i: tip this far above the board top, m
+APPROACH = 0.030                                    # X_i: tip this far above the top of the task's part, m
 TRAJ_TIME = 10.0                                    # tau(t) from X^_i to X^_g takes this long, s
 MASS = np.array([20.0, 20.0, 20.0, 0.4, 0.4, 0.4])  # M of Eq. 5: kg and kg m^2 (see README)
 JOINT_TORQUE_CAP = [10.0, 10.0, 10.0, 2.0, 2.0, 2.0]  # N m: the motors' limits (UR5 rated: 150 / 28)
@@ -399,6 +399,13 @@ class World:
         return out
 
     # -- placement ------------------------------------------------------------------------
+    def part_top(self):
+        """Height above the board top of what the tool meets first: the board itself for the peg; the
+        shaft (and the mating gear beside it) for the gear. X_i is APPROACH above it, so that even the
+        largest error (-20 mm in z) starts the tool 10 mm clear: a tool spawned into the shaft was
+        thrown off the board by the solver's push-out."""
+        return 0.0 if self.task == "peg" else max(SHAFT_HEIGHT, GEAR_THICK)
+
     def goal_in_board(self):
         """X_g in the board frame: the fully inserted tip position (hole bottom / shaft shoulder)."""
         return np.array([0.0, 0.0, -HOLE_DEPTH if self.task == "peg" else 0.0])
@@ -425,7 +432,7 @@ class World:
             self.context = ctx
         R_g = ctl.rot_z(yaw) @ R_DOWN
         p_g = top + R_b @ self.goal_in_board()
-        p_i = top + np.array([0.0, 0.0, APPROACH])
+        p_i = top + np.array([0.0, 0.0, self.part_top() + APPROACH])
         self.goal_yaw = yaw
         return (p_g, R_g), (p_i, R_g)
 
@@ -717,7 +724,7 @@ class AssemblyEnv:
         return {"image": img, "pose_hist": self.pose_hist.copy(), "wrench_hist": self.wrench_hist.copy()}
 
     def _info(self, x, success):
-        depth = float(self.x_i[0][2] - APPROACH - x[0][2])   # tip below the board top, m
+        depth = float(self.x_i[0][2] - APPROACH - x[0][2])   # tip below the part's top (hole or shaft), m
         # X - X_g (x, y, z in m, rotation about z in rad): what Eq. 17 measures, known in training only
         offset = ctl.pose_error(x, self.x_g)[[0, 1, 2, 5]]
         return {"success": success, "depth": depth, "t": self.t, "f_tool": self.f_tool.copy(), "goal_offset": offset,

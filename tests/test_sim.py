@@ -105,6 +105,21 @@ def test_wrist_sensor_reads_pressed_force(peg_world):
     assert np.linalg.norm(f[:2]) < 1.5                   # mostly normal to the board
 
 
+@pytest.mark.parametrize("task", ["peg", "gear"])
+def test_largest_error_starts_clear_of_the_parts(task):
+    # X^_i with the full -20 mm in z, a few mm off the axis: the tool starts in free space and its
+    # first step reads no contact (a gear spawned 5 mm into the shaft was thrown off the board)
+    env = sim.AssemblyEnv(task, e_r=sim.E_R_FINAL, image=False)
+    for e in ([0.004, 0.0, -sim.E_R_FINAL, 0.0], [-0.02, 0.02, -sim.E_R_FINAL, 0.1]):
+        env.reset(options={"error": np.array(e)})
+        w = env.world
+        assert not w.bc.getContactPoints(bodyA=w.robot), e
+        _, _, _, _, info = env.step(np.zeros(6))
+        assert np.abs(info["f_world"][:3]).max() < 0.5, (e, info["f_world"])
+        assert info["depth"] < -0.005, (e, info["depth"])   # still above the hole / the shaft top
+    env.close()
+
+
 def test_observation_carries_no_ground_truth():
     env = sim.AssemblyEnv("peg", e_r=0.01, image=False)
     e = np.array([0.004, -0.003, 0.002, 0.0])
