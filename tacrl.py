@@ -849,8 +849,8 @@ def families(cfg):
         fam["methods"] = name
     if cfg["curriculum"] == "ex10" and cfg["roi"] == "task" and not cfg.get("vanilla"):
         fam["obs"] = OBS_NAMES.get(cfg["obs"], cfg["obs"])
-    if ours_but(curriculum=cfg["curriculum"], error_mm=cfg["error_mm"]) and (
-            cfg["curriculum"] == "none" or cfg["error_mm"] == 30.0) and cfg["curriculum"] != "ex10":
+    if ours_but(curriculum=cfg["curriculum"], error_mm=cfg["error_mm"]) and cfg["curriculum"] != "ex10" and (
+            cfg["curriculum"] in ("none", "adaptive") or cfg["error_mm"] == 30.0):   # ours: adaptive at 20 mm
         fam["curriculum"] = ("no curriculum" if cfg["curriculum"] == "none" else f"curriculum {cfg['curriculum']}") \
             + f", {cfg['error_mm']:g} mm"
     if ours_but(roi=cfg["roi"]):

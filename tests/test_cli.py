@@ -134,7 +134,7 @@ def test_corrupt_checkpoint_and_policy_are_one_line_errors(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("changes, expected", [
-    ({}, {"methods": "ours", "roi": "task attention (Eq. 11)"}),
+    ({}, {"methods": "ours", "roi": "task attention (Eq. 11)", "curriculum": "curriculum adaptive, 20 mm"}),
     ({"vanilla": True}, {"methods": "vanilla"}),
     ({"obs": "v"}, {"methods": "visual"}),
     ({"obs": "pt", "curriculum": "ex10"}, {"obs": "P-T"}),
