@@ -77,6 +77,7 @@ EX_MIN = 0.002                                      # floor of the exploration r
 EX_ROT = (0.002, 0.002)                             # exploration about x, y, rad: stiff, so a residual torque
                                                     # cannot tilt the peg enough to jam it (0.05 mm over 25 mm)
 APPROACH = 0.030                                    # X_i: tip this far above the top of the task's part, m
+CLEAR = 0.010                                       # ... and at least this far above it at the largest z error
 TRAJ_TIME = 10.0                                    # tau(t) from X^_i to X^_g takes this long, s
 MASS = np.array([20.0, 20.0, 20.0, 0.4, 0.4, 0.4])  # M of Eq. 5: kg and kg m^2 (see README)
 JOINT_TORQUE_CAP = [10.0, 10.0, 10.0, 2.0, 2.0, 2.0]  # N m: the motors' limits (UR5 rated: 150 / 28)
@@ -402,7 +403,7 @@ class World:
     def part_top(self):
         """Height above the board top of what the tool meets first: the board itself for the peg; the
         shaft (and the mating gear beside it) for the gear. X_i is APPROACH above it, so that even the
-        largest error (-20 mm in z) starts the tool 10 mm clear: a tool spawned into the shaft was
+        largest error (-20 mm in z) starts the tool CLEAR of it: a tool spawned into the shaft was
         thrown off the board by the solver's push-out."""
         return 0.0 if self.task == "peg" else max(SHAFT_HEIGHT, GEAR_THICK)
 
@@ -410,9 +411,9 @@ class World:
         """X_g in the board frame: the fully inserted tip position (hole bottom / shaft shoulder)."""
         return np.array([0.0, 0.0, -HOLE_DEPTH if self.task == "peg" else 0.0])
 
-    def place(self, ctx, shift=np.zeros(4)):
+    def place(self, ctx, shift=np.zeros(4), approach=APPROACH):
         """Put the board where context `ctx` says, moved by shift = (dx, dy, dz, dyaw); returns the
-        true goal X_g and pre-assembly point X_i as poses (p, R)."""
+        true goal X_g and pre-assembly point X_i (the tip `approach` above the part) as poses (p, R)."""
         bc = self.bc
         yaw = ctx.board_yaw + shift[3]
         R_b = ctl.rot_z(yaw)
@@ -432,7 +433,7 @@ class World:
             self.context = ctx
         R_g = ctl.rot_z(yaw) @ R_DOWN
         p_g = top + R_b @ self.goal_in_board()
-        p_i = top + np.array([0.0, 0.0, self.part_top() + APPROACH])
+        p_i = top + np.array([0.0, 0.0, self.part_top() + approach])
         self.goal_yaw = yaw
         return (p_g, R_g), (p_i, R_g)
 
@@ -634,7 +635,9 @@ class AssemblyEnv:
     task: 'peg' or 'gear'; context: a name in CONTEXTS; e_r: guidance error range E_r (m, x y z;
     the rotation error about z scales with it, E_ROT_FINAL at E_R_FINAL); ex_r: exploration range
     Ex_r (m), sets K through Eq. 8-9, floored at EX_MIN; roi: 'task' (Eq. 11) or a preset name;
-    clearance: diametral clearance, m.
+    clearance: diametral clearance, m; e_r_max: the largest E_r this env will be set to (at least
+    E_R_FINAL and e_r): Eq. 11's ROI covers it, and X_i is raised where needed so that its z error
+    still starts the tool CLEAR of the parts (from 20 mm up: at 30 mm X_i is 40 mm above them).
 
     obs = {'image': (80, 80) uint8, 'pose_hist': (32, 6) float32 [x y z (m) rx ry rz (rad)] of the
     tip relative to X^_g in X^_g's frame, newest last, 'wrench_hist': (32, 6) float32 [F (N), T (N m)]
@@ -643,7 +646,7 @@ class AssemblyEnv:
     """
 
     def __init__(self, task="peg", context="train", e_r=0.0, ex_r=None, roi="task", clearance=1e-4,
-                 gui=False, image=True, use_base_policy=True):
+                 gui=False, image=True, use_base_policy=True, e_r_max=None):
         if task not in ("peg", "gear"):
             raise ValueError(f"unknown task {task!r} (peg, gear)")
         if context not in CONTEXTS:
@@ -653,6 +656,8 @@ class AssemblyEnv:
         self.task, self.context, self.roi_name, self.image_on = task, context, roi, image
         self.use_base_policy = use_base_policy
         self.world = World(task, clearance, gui)
+        self.e_r_max = max(E_R_FINAL, e_r, e_r_max or 0.0)
+        self.approach = max(APPROACH, round(self.e_r_max + CLEAR, 6))
         self.set_ranges(e_r, ex_r)
         self.rng = np.random.default_rng()
         self.roi = None
@@ -660,6 +665,8 @@ class AssemblyEnv:
 
     def set_ranges(self, e_r, ex_r=None):
         """E_r (guidance error) and Ex_r (exploration) in m; the curriculum calls this between episodes."""
+        if e_r > self.e_r_max + 1e-9:
+            raise ValueError(f"E_r {e_r * 1000:g} mm is above this env's e_r_max, {self.e_r_max * 1000:g} mm")
         self.e_r = float(e_r)
         self.ex_r = exploration_range(e_r, ex_r)
 
@@ -671,12 +678,13 @@ class AssemblyEnv:
         return (0, 1) if self.task == "peg" else (0, 1, 5)
 
     def _compute_roi(self, x_i, ctx):
-        """Eq. 11 at the final error range, or a preset window centred on the task features."""
+        """Eq. 11 at the largest error range, or a preset window centred on the task features."""
         w = self.world
         p_b = np.array([ctx.board_xy[0], ctx.board_xy[1], BOARD_THICK])
         board = (p_b, ctl.rot_z(ctx.board_yaw))
         if self.roi_name == "task":
-            return roi_box(w, x_i, board, E_R_FINAL, E_ROT_FINAL, self._alignment_directions())
+            return roi_box(w, x_i, board, self.e_r_max, E_ROT_FINAL * (self.e_r_max / E_R_FINAL),
+                           self._alignment_directions())
         c = roi_box(w, x_i, board, 0.0, 0.0, ())
         return preset_roi(self.roi_name, ((c[0] + c[2]) / 2, (c[1] + c[3]) / 2))
 
@@ -689,7 +697,7 @@ class AssemblyEnv:
         w, ctx = self.world, CONTEXTS[self.context]
         scale = np.array([self.e_r] * 3 + [E_ROT_FINAL * self.e_r / E_R_FINAL])
         e = np.asarray(options["error"], float) if "error" in options else self.rng.uniform(-1, 1, 4) * scale  # Eq. 13
-        self.x_g, self.x_i = w.place(ctx, np.asarray(options.get("goal_shift", np.zeros(4)), float))
+        self.x_g, self.x_i = w.place(ctx, np.asarray(options.get("goal_shift", np.zeros(4)), float), self.approach)
         R_e = ctl.rot_z(e[3])
         self.x_g_hat = (self.x_g[0] + e[:3], R_e @ self.x_g[1])      # Eq. 15
         self.x_i_hat = (self.x_i[0] + e[:3], R_e @ self.x_i[1])      # Eq. 14
@@ -724,7 +732,7 @@ class AssemblyEnv:
         return {"image": img, "pose_hist": self.pose_hist.copy(), "wrench_hist": self.wrench_hist.copy()}
 
     def _info(self, x, success):
-        depth = float(self.x_i[0][2] - APPROACH - x[0][2])   # tip below the part's top (hole or shaft), m
+        depth = float(self.x_i[0][2] - self.approach - x[0][2])   # tip below the part's top (hole or shaft), m
         # X - X_g (x, y, z in m, rotation about z in rad): what Eq. 17 measures, known in training only
         offset = ctl.pose_error(x, self.x_g)[[0, 1, 2, 5]]
         return {"success": success, "depth": depth, "t": self.t, "f_tool": self.f_tool.copy(), "goal_offset": offset,

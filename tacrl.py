@@ -444,11 +444,17 @@ def save_atomic(obj, path):
     os.replace(path + ".tmp", path)
 
 
+def train_e_r_max(a):
+    """The training env's largest error range (m): the curriculum's final one, at least 20 mm."""
+    return max(sim.E_R_FINAL, a.error_mm / 1000)
+
+
 def save_policy(path, sac, a, ex_r):
-    """What evaluation needs: the encoder, the actor (the critics stay in ckpt.pt) and the
-    exploration range Ex_r (m) the training ended with: the stiffness of Eq. 9 it learned to push."""
+    """What evaluation needs: the encoder, the actor (the critics stay in ckpt.pt), the exploration
+    range Ex_r (m) the training ended with (the stiffness of Eq. 9 it learned to push) and the
+    env's largest error range (its ROI and X_i)."""
     d = {"format": "tacrl-policy-1", "task": a.task, "obs": a.obs, "roi": a.roi, "vanilla": a.vanilla,
-         "ex_r": float(ex_r), "enc": sac.enc.state_dict(), "actor": sac.actor.state_dict()}
+         "ex_r": float(ex_r), "e_r_max": train_e_r_max(a), "enc": sac.enc.state_dict(), "actor": sac.actor.state_dict()}
     if sac.actor_enc is not None:
         d["actor_enc"] = sac.actor_enc.state_dict()
     save_atomic(d, path)
@@ -476,6 +482,7 @@ def load_policy(path, task, device="cpu"):
     act = lambda obs: policy.act(enc, actor, obs, deterministic=True, device=device)   # noqa: E731
     act.vanilla = bool(d.get("vanilla", False))    # evaluate it the way it was trained:
     act.ex_r = d.get("ex_r")                       # with its controller (None: older files, Ex_r = E_r)
+    act.e_r_max = d.get("e_r_max", sim.E_R_FINAL)  # and its view (Eq. 11's ROI) and X_i
     act.enc, act.actor = enc, actor                # for plots that look inside (behaviour_plot)
     return act
 
@@ -559,7 +566,7 @@ def train(a, log=lambda msg: print(msg, flush=True)):
     sac = make_sac(a, device)
     curr = curriculum.Curriculum(a.curriculum, final=a.error_mm / 1000)
     env = sim.AssemblyEnv(a.task, a.context, roi=a.roi, clearance=a.clearance_mm / 1000, gui=a.gui,
-                          use_base_policy=not a.vanilla)
+                          use_base_policy=not a.vanilla, e_r_max=train_e_r_max(a))
     env.rng = np.random.default_rng(a.seed)
     sample_rng = np.random.default_rng(a.seed + 1)
     shapes = {"image": (sim.IMG, sim.IMG), "pose_hist": (sim.HIST, 6), "wrench_hist": (sim.HIST, 6)}
@@ -879,7 +886,7 @@ def eval_cached(run, context, levels=LEVELS, episodes=20, log=print):
             return rows
     log(f"  evaluating {run['dir']} in {context} at {', '.join(f'{mm:g}' for mm in levels)} mm")
     env = sim.AssemblyEnv(cfg["task"], context, roi=cfg["roi"], clearance=cfg["clearance_mm"] / 1000,
-                          use_base_policy=not act.vanilla)
+                          use_base_policy=not act.vanilla, e_r_max=act.e_r_max)
     try:
         rows = evaluate_levels(env, act, levels, episodes, EVAL_SEED + cfg["seed"])
     finally:
@@ -904,7 +911,7 @@ def behaviour_plot(run, out, error_mm=10.0, seed=0):
     cfg = run["cfg"]
     act = load_policy(os.path.join(run["dir"], "policy.pt"), cfg["task"])
     env = sim.AssemblyEnv(cfg["task"], roi=cfg["roi"], e_r=error_mm / 1000, ex_r=act.ex_r,
-                          use_base_policy=not act.vanilla)
+                          use_base_policy=not act.vanilla, e_r_max=act.e_r_max)
     feats, poses, wrenches, acts, phase = [], [], [], [], []
 
     def policy_step(obs):                       # the policy, recording its image features and actions
@@ -1157,7 +1164,8 @@ def main(argv=None):
         return 130
     print("config:", asdict(a))
     env = sim.AssemblyEnv(a.task, a.context, e_r=a.error_mm / 1000, ex_r=getattr(act, "ex_r", None), roi=a.roi,
-                          clearance=a.clearance_mm / 1000, gui=a.gui, use_base_policy=not getattr(act, "vanilla", False))
+                          clearance=a.clearance_mm / 1000, gui=a.gui, use_base_policy=not getattr(act, "vanilla", False),
+                          e_r_max=getattr(act, "e_r_max", None))
     if a.eval == "initial":
         act = lambda obs: np.zeros(6)          # noqa: E731  the hand-designed policy alone, F_d = 0
     elif a.eval == "two-step":

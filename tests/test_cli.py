@@ -91,6 +91,7 @@ def test_training_writes_every_file_resumes_and_evaluates(tmp_path, capsys):
     pol = os.path.join(run_dir, "policy.pt")
     d = torch.load(pol, weights_only=True)
     assert ev["rows"][0]["ex_r_mm"] == round(max(d["ex_r"], 0.002) * 1000, 3) == 2.0
+    assert d["e_r_max"] == 0.02              # and the env it saw: ROI and X_i for 20 mm, the least there is
     # ... and evaluates like the initial one, at any E_r with that Ex_r (set to 15 mm here to tell them apart)
     d["ex_r"] = 0.015
     torch.save(d, pol)

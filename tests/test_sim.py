@@ -105,18 +105,21 @@ def test_wrist_sensor_reads_pressed_force(peg_world):
     assert np.linalg.norm(f[:2]) < 1.5                   # mostly normal to the board
 
 
-@pytest.mark.parametrize("task", ["peg", "gear"])
-def test_largest_error_starts_clear_of_the_parts(task):
-    # X^_i with the full -20 mm in z, a few mm off the axis: the tool starts in free space and its
+@pytest.mark.parametrize("task, e_r", [("peg", 0.02), ("gear", 0.02), ("peg", 0.03), ("gear", 0.03)])
+def test_largest_error_starts_clear_of_the_parts(task, e_r):
+    # X^_i with the full -E_r in z, a few mm off the axis: the tool starts in free space and its
     # first step reads no contact (a gear spawned 5 mm into the shaft was thrown off the board)
-    env = sim.AssemblyEnv(task, e_r=sim.E_R_FINAL, image=False)
-    for e in ([0.004, 0.0, -sim.E_R_FINAL, 0.0], [-0.02, 0.02, -sim.E_R_FINAL, 0.1]):
+    env = sim.AssemblyEnv(task, e_r=e_r, image=False)
+    assert env.approach == (sim.APPROACH if e_r <= sim.E_R_FINAL else pytest.approx(e_r + sim.CLEAR))
+    for e in ([0.004, 0.0, -e_r, 0.0], [-e_r, e_r, -e_r, 0.1]):
         env.reset(options={"error": np.array(e)})
         w = env.world
         assert not w.bc.getContactPoints(bodyA=w.robot), e
         _, _, _, _, info = env.step(np.zeros(6))
         assert np.abs(info["f_world"][:3]).max() < 0.5, (e, info["f_world"])
         assert info["depth"] < -0.005, (e, info["depth"])   # still above the hole / the shaft top
+    with pytest.raises(ValueError, match="e_r_max"):        # the env was not built for a larger range
+        env.set_ranges(e_r + 0.005)
     env.close()
 
 
@@ -173,6 +176,10 @@ def test_roi_eq11_covers_the_error_range():
     small = sim.roi_box(env.world, env.x_i, (env.x_g[0] + [0, 0, sim.HOLE_DEPTH], np.eye(3)), 0.01, 0.0, (0, 1))
     assert small[0] >= u0 and small[1] >= v0 and small[2] <= u1 and small[3] <= v1
     env.close()
+    wide = sim.AssemblyEnv("peg", e_r=0.0, image=False, e_r_max=0.03)   # built for 30 mm: a larger window
+    wide.reset(seed=0)
+    assert wide.roi[2] - wide.roi[0] > u1 - u0 and wide.roi[3] - wide.roi[1] > v1 - v0
+    wide.close()
 
 
 @pytest.mark.parametrize("roi", ["full", "100x160"])
