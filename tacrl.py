@@ -840,6 +840,31 @@ def plot_context_bars(bars, out, title):
     plt.close(fig)
 
 
+def plot_views(task, rois, out, error=(0.015, -0.010, 0.0, 0.05)):
+    """What the policy sees: the first image of an episode with the same error in each context
+    (columns) through each ROI (rows), so that Fig. 12's bars can be read against the pixels."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    contexts = ("train",) + UNSEEN
+    fig, ax = plt.subplots(len(rois), len(contexts), figsize=(2.2 * len(contexts), 2.3 * len(rois)), squeeze=False)
+    for i, roi in enumerate(rois):
+        for j, ctx in enumerate(contexts):
+            env = sim.AssemblyEnv(task, ctx, roi=roi)
+            try:
+                obs, _ = env.reset(options={"error": np.array(error)})
+            finally:
+                env.close()
+            ax[i, j].imshow(obs["image"], cmap="gray", vmin=0, vmax=255)   # (80, 80) uint8
+            ax[i, j].set_xticks([])
+            ax[i, j].set_yticks([])
+            ax[i, j].set_title(f"{ctx}, ROI {roi}", fontsize=8)
+    fig.suptitle(f"{task}: the 80x80 image at X^_i, error {error[0] * 1000:g} / {error[1] * 1000:g} mm", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+
+
 OBS_NAMES = {"pt": "P-T", "ts-pt": "Time-series P-T", "ts-ptv": "Time-series P-T-V"}
 
 
@@ -1059,6 +1084,9 @@ def write_report(patterns, out_dir="docs", log=print):
             figs.append((name, f"{task}: mean cumulative reward over 5/10/15/20 mm (20 trials each) in the training "
                                "context and two unseen ones, task-attention ROI against the full view (the paper's "
                                "Fig. 12; bars: spread over the four error ranges)"))
+            plot_views(task, ("task", "full"), os.path.join(out_dir, f"fig-{task}-views.png"))
+            figs.append((f"fig-{task}-views.png", f"{task}: what the policy sees at the start of an episode in each "
+                                                  "context, through the task-attention ROI and the full view"))
             md += ["", f"## Context generalization, {task} (the paper's Fig. 12)", "",
                    "Mean cumulative reward per episode over 5/10/15/20 mm, 20 trials each.", "",
                    "| ROI | " + " | ".join(("train",) + UNSEEN) + " |", "|---" * (1 + len(UNSEEN) + 1) + "|"]

@@ -116,6 +116,8 @@ def test_training_writes_every_file_resumes_and_evaluates(tmp_path, capsys):
     # Fig. 16, which the report draws for our method's first peg run (the tiny run is not one)
     tacrl.behaviour_plot(tacrl.load_run(run_dir), str(docs / "behaviour.png"), error_mm=0.0)
     assert (docs / "behaviour.png").stat().st_size > 0
+    tacrl.plot_views("peg", ("full",), str(docs / "views.png"))     # the images beside Fig. 12's bars
+    assert (docs / "views.png").stat().st_size > 0
 
 
 def test_corrupt_checkpoint_and_policy_are_one_line_errors(tmp_path, capsys):
