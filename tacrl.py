@@ -69,7 +69,7 @@ class Args:
     device: str = "auto"         # auto, cpu or cuda
     threads: int = 0             # torch CPU threads (0: torch's default, one per core)
     eval_levels: str = "5,10,15,20"  # error ranges (mm) of the evaluation after training (Table 2)
-    run_dir: str = ""            # where the run lives; default runs/<task>-<obs>-<curriculum>[-e<mm>][-roi-<roi>]-s<seed>
+    run_dir: str = ""            # where the run lives; default runs/<task>-<obs>-<curriculum>[-e<mm>][-roi-<roi>][-<critic>]-s<seed>
     seeds: str = ""              # e.g. 0,1,2: independent training runs in parallel processes, one a seed
     report: str = ""             # regenerate docs/RESULTS.md from these run dirs (comma-separated globs)
     report_dir: str = "docs"     # where --report writes RESULTS.md and its figures
@@ -197,10 +197,11 @@ def check_args(a):
 
 
 def default_run_dir(a):
-    """runs/<task>-[vanilla-]<obs>-<curriculum>[-e<E_r mm>][-roi-<roi>]-s<seed>: the ablation's flags
-    that change the run are in its name, so that no run overwrites another's directory."""
+    """runs/<task>-[vanilla-]<obs>-<curriculum>[-e<E_r mm>][-roi-<roi>][-<critic>]-s<seed>: the flags of
+    the baselines and ablations are in its name, so that no run overwrites another's directory."""
     name = f"{a.task}-{'vanilla-' if a.vanilla else ''}{a.obs}-{a.curriculum}"
     name += (f"-e{a.error_mm:g}" if a.error_mm != Args.error_mm else "") + (f"-roi-{a.roi}" if a.roi != "task" else "")
+    name += f"-{a.critic}" if a.critic != Args.critic else ""
     return os.path.join("runs", f"{name}-s{a.seed}")
 
 
@@ -809,10 +810,14 @@ def plot_groups(groups, keys, out, title):
         ax.set_xlabel("episode")
         ax.set_ylabel(CURVES[key])
         ax.grid(alpha=0.3)
-    axs[0][0].legend(fontsize=7)
     fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    fig.savefig(out, dpi=110)
+    if len(groups) <= 4:
+        axs[0][0].legend(fontsize=7)
+        fig.tight_layout()
+    else:                                  # many curves: the legend to the right, off the data
+        fig.legend(*axs[0][0].get_legend_handles_labels(), fontsize=7, loc="center left", bbox_to_anchor=(1.0, 0.5))
+        fig.tight_layout()
+    fig.savefig(out, dpi=110, bbox_inches="tight")
     plt.close(fig)
 
 

@@ -45,6 +45,7 @@ def test_seed_commands_one_run_dir_and_thread_share_per_seed():
 def test_ablation_runs_get_run_dirs_of_their_own():
     dirs = [tacrl.parse_args(argv).run_dir for argv in (
         [], ["--roi", "full"], ["--curriculum", "none", "--error-mm", "10"], ["--curriculum", "none"],
-        ["--curriculum", "none", "--error-mm", "30", "--roi", "200", "--seed", "1"])]
+        ["--curriculum", "none", "--error-mm", "30", "--roi", "200", "--seed", "1"], ["--obs", "v", "--critic", "multimodal"])]
     assert dirs == ["runs/peg-ts-ptv-adaptive-s0", "runs/peg-ts-ptv-adaptive-roi-full-s0",
-                    "runs/peg-ts-ptv-none-e10-s0", "runs/peg-ts-ptv-none-s0", "runs/peg-ts-ptv-none-e30-roi-200-s1"]
+                    "runs/peg-ts-ptv-none-e10-s0", "runs/peg-ts-ptv-none-s0", "runs/peg-ts-ptv-none-e30-roi-200-s1",
+                    "runs/peg-v-adaptive-multimodal-s0"]
