@@ -402,9 +402,9 @@ class World:
     # -- placement ------------------------------------------------------------------------
     def part_top(self):
         """Height above the board top of what the tool meets first: the board itself for the peg; the
-        shaft (and the mating gear beside it) for the gear. X_i is APPROACH above it, so that even the
-        largest error (-20 mm in z) starts the tool CLEAR of it: a tool spawned into the shaft was
-        thrown off the board by the solver's push-out."""
+        shaft (and the mating gear beside it) for the gear. X_i is the env's approach above it, so that
+        even the largest z error starts the tool CLEAR of it: a tool spawned into the shaft was thrown
+        off the board by the solver's push-out."""
         return 0.0 if self.task == "peg" else max(SHAFT_HEIGHT, GEAR_THICK)
 
     def goal_in_board(self):

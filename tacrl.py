@@ -445,17 +445,12 @@ def save_atomic(obj, path):
     os.replace(path + ".tmp", path)
 
 
-def train_e_r_max(a):
-    """The training env's largest error range (m): the curriculum's final one, at least 20 mm."""
-    return max(sim.E_R_FINAL, a.error_mm / 1000)
-
-
-def save_policy(path, sac, a, ex_r):
+def save_policy(path, sac, a, ex_r, e_r_max):
     """What evaluation needs: the encoder, the actor (the critics stay in ckpt.pt), the exploration
     range Ex_r (m) the training ended with (the stiffness of Eq. 9 it learned to push) and the
-    env's largest error range (its ROI and X_i)."""
+    env's largest error range e_r_max (m: its ROI and X_i)."""
     d = {"format": "tacrl-policy-1", "task": a.task, "obs": a.obs, "roi": a.roi, "vanilla": a.vanilla,
-         "ex_r": float(ex_r), "e_r_max": train_e_r_max(a), "enc": sac.enc.state_dict(), "actor": sac.actor.state_dict()}
+         "ex_r": float(ex_r), "e_r_max": float(e_r_max), "enc": sac.enc.state_dict(), "actor": sac.actor.state_dict()}
     if sac.actor_enc is not None:
         d["actor_enc"] = sac.actor_enc.state_dict()
     save_atomic(d, path)
@@ -567,7 +562,7 @@ def train(a, log=lambda msg: print(msg, flush=True)):
     sac = make_sac(a, device)
     curr = curriculum.Curriculum(a.curriculum, final=a.error_mm / 1000)
     env = sim.AssemblyEnv(a.task, a.context, roi=a.roi, clearance=a.clearance_mm / 1000, gui=a.gui,
-                          use_base_policy=not a.vanilla, e_r_max=train_e_r_max(a))
+                          use_base_policy=not a.vanilla, e_r_max=a.error_mm / 1000)   # floored at 20 mm by the env
     env.rng = np.random.default_rng(a.seed)
     sample_rng = np.random.default_rng(a.seed + 1)
     shapes = {"image": (sim.IMG, sim.IMG), "pose_hist": (sim.HIST, 6), "wrench_hist": (sim.HIST, 6)}
@@ -672,7 +667,7 @@ def train(a, log=lambda msg: print(msg, flush=True)):
             log(f"ep {ep + 1:4d}/{a.train_episodes}  R {ret:7.1f}  succ {int(success)}  sr15 {curr.success_rate:4.2f}  "
                 f"E_r {e_r * 1000:4.1f}mm  Ex_r {row['ex_r_mm']:4.1f}mm  delta {curr.delta:5.3f}  steps {len(acts):3d}  "
                 f"env {t_env:4.1f}s  upd {t_upd:4.1f}s  elapsed {fmt_time(elapsed)}  ETA {fmt_time(eta)}")
-        save_policy(os.path.join(a.run_dir, "policy.pt"), sac, a, ex_r=curr.ranges()[1])
+        save_policy(os.path.join(a.run_dir, "policy.pt"), sac, a, ex_r=curr.ranges()[1], e_r_max=env.e_r_max)
         plot_curves(metrics_path, os.path.join(a.run_dir, "curves.png"), f"{a.task}, {a.obs}, {a.curriculum}")
         # -- Table-2-style evaluation with a seed never used in training
         act = load_policy(os.path.join(a.run_dir, "policy.pt"), a.task, device)
@@ -813,10 +808,9 @@ def plot_groups(groups, keys, out, title):
     fig.suptitle(title, fontsize=10)
     if len(groups) <= 4:
         axs[0][0].legend(fontsize=7)
-        fig.tight_layout()
     else:                                  # many curves: the legend to the right, off the data
         fig.legend(*axs[0][0].get_legend_handles_labels(), fontsize=7, loc="center left", bbox_to_anchor=(1.0, 0.5))
-        fig.tight_layout()
+    fig.tight_layout()
     fig.savefig(out, dpi=110, bbox_inches="tight")
     plt.close(fig)
 
