@@ -51,11 +51,15 @@ def test_initial_policy_row_and_json(tmp_path):
 
 
 TINY = ["--task", "peg", "--error-mm", "1", "--train-episodes", "3", "--warmup", "1", "--updates", "2",
-        "--batch", "8", "--episodes", "1", "--eval-levels", "0", "--buffer", "150"]
+        "--batch", "8", "--episodes", "1", "--eval-levels", "0", "--buffer", "40"]
 
 
-def test_training_writes_every_file_resumes_and_evaluates(tmp_path, capsys):
+def test_training_writes_every_file_resumes_and_evaluates(tmp_path, capsys, monkeypatch):
+    import sim
     import tacrl
+    # episodes of at most 30 steps, not 120: the untrained policy runs every one to the limit, and this
+    # test is about files, resuming and evaluating, not about inserting
+    monkeypatch.setattr(sim, "MAX_STEPS", 30)
     run_dir = str(tmp_path / "run")
     lines = []
 
@@ -67,21 +71,23 @@ def test_training_writes_every_file_resumes_and_evaluates(tmp_path, capsys):
     with pytest.raises(KeyboardInterrupt):
         tacrl.train(a, log=interrupt_after_episode_2)
     assert sorted(os.listdir(os.path.join(run_dir, "replay"))) == ["ep_000001.npz", "ep_000002.npz"]
-    # starting over in the same directory is refused; --resume continues at episode 3
-    again = run(*TINY, "--run-dir", run_dir)
-    assert again.returncode == 2 and "--resume" in again.stderr
-    r = run("--resume", run_dir)
-    assert r.returncode == 0, r.stderr
-    assert "resumed" in r.stdout and "ep    3/3" in r.stdout and "ep    1/3" not in r.stdout
+    # starting over in the same directory is refused; --resume continues at episode 3 (in-process: a
+    # subprocess costs seconds of imports, and test_bad_argument_through_the_shell covers the shell)
+    capsys.readouterr()
+    assert tacrl.main(TINY + ["--run-dir", run_dir]) == 2
+    assert "--resume" in capsys.readouterr().err
+    assert tacrl.main(["--resume", run_dir]) == 0
+    out = capsys.readouterr().out
+    assert "resumed" in out and "ep    3/3" in out and "ep    1/3" not in out
     for f in ("config.json", "ckpt.pt", "metrics.csv", "policy.pt", "curves.png", "eval.json"):
         assert os.path.getsize(os.path.join(run_dir, f)) > 0, f
     with open(os.path.join(run_dir, "metrics.csv")) as f:
         rows = list(csv.DictReader(f))
     assert [int(x["episode"]) for x in rows] == [1, 2, 3]
     assert int(rows[2]["updates"]) == 2 and int(rows[0]["updates"]) == 0     # none during warm-up
-    # on disk: the newest episodes that fill the 150-transition buffer, no older ones
+    # on disk: the newest episodes that fill the 40-transition buffer, no older ones
     steps = [int(x["steps"]) for x in rows]
-    keep = next(i for i in range(3, -1, -1) if sum(steps[i:]) >= 150 or i == 0)
+    keep = next(i for i in range(3, -1, -1) if sum(steps[i:]) >= 40 or i == 0)
     kept = sorted(os.listdir(os.path.join(run_dir, "replay")))
     assert kept == [f"ep_{i + 1:06d}.npz" for i in range(keep, 3)], (steps, kept)
     ev = json.loads(open(os.path.join(run_dir, "eval.json")).read())
@@ -96,7 +102,6 @@ def test_training_writes_every_file_resumes_and_evaluates(tmp_path, capsys):
     d["ex_r"] = 0.015
     torch.save(d, pol)
     out = tmp_path / "row.json"
-    capsys.readouterr()                  # (in-process from here on: a subprocess costs seconds of imports)
     assert tacrl.main(["--task", "peg", "--eval", pol, "--error-mm", "0", "--episodes", "1", "--json", str(out)]) == 0
     assert "TA-MRP peg 0mm" in capsys.readouterr().out
     row = json.loads(out.read_text())
