@@ -16,8 +16,9 @@ Evaluation of the hand-designed policy alone (F_d = 0), and of the classical two
     python tacrl.py --task peg --eval two-step --error-mm 20
 
 The experiments (issue 4): baselines `--vanilla` and `--obs v`, ablations `--obs`, `--curriculum`,
-`--roi`; `--seeds 0,1,2` trains one run a seed in parallel; `--report "runs/*"` writes
-docs/RESULTS.md (Tables 1 and 2, figures) from the run directories.
+`--roi`; `--seeds 0,1,2` trains one run a seed in parallel; `--archive "runs/*"` copies the small
+files of finished runs into results/, which the repository keeps; `--report "results/*"` writes
+docs/RESULTS.md (Tables 1 and 2, figures) from them.
 
 A run directory holds config.json, ckpt.pt (networks, optimisers, curriculum, RNG states; every
 episode), replay/ (one .npz per episode: the replay buffer), metrics.csv, and at the end policy.pt,
@@ -71,6 +72,7 @@ class Args:
     eval_levels: str = "5,10,15,20"  # error ranges (mm) of the evaluation after training (Table 2)
     run_dir: str = ""            # where the run lives; default runs/<task>-<obs>-<curriculum>[-e<mm>][-roi-<roi>][-<critic>]-s<seed>
     seeds: str = ""              # e.g. 0,1,2: independent training runs in parallel processes, one a seed
+    archive: str = ""            # copy the small files of these finished run dirs to results/ (comma-separated globs)
     report: str = ""             # regenerate docs/RESULTS.md from these run dirs (comma-separated globs)
     report_dir: str = "docs"     # where --report writes RESULTS.md and its figures
     resume: str = ""             # continue the run in this directory
@@ -101,8 +103,11 @@ HELP = {
     "the paper's inputs and gets an encoder of its own) or multimodal (the paper: the critics see what the "
     "actor sees, through the encoder they share)", "device": "auto, cpu or cuda", "run_dir": "run directory",
     "eval_levels": "comma-separated error ranges (mm) evaluated after training",
+    "archive": "copy what the report reads of these finished run directories (comma-separated glob patterns, "
+    "e.g. 'runs/*': config, metrics, evaluations, policy.pt, curves; not the checkpoint or the replay) to "
+    "results/<run name>/, which the repository keeps",
     "report": "regenerate docs/RESULTS.md and its figures from these run directories (comma-separated glob "
-    "patterns, e.g. 'runs/*'); evaluates what the report needs and has not got yet",
+    "patterns, e.g. 'results/*'); evaluates what the report needs and has not got yet",
     "report_dir": "where --report writes RESULTS.md and its figures",
     "seeds": "comma-separated seeds: one training run each, in parallel processes up to the number of cores "
     "(run dirs get -s<seed>; each logs to its train.log)",
@@ -760,7 +765,7 @@ def command_of(cfg):
     """The training command that reproduces a run: the flags whose values differ from the defaults."""
     default, flags = Args(), ["python tacrl.py"]
     for k, v in cfg.items():
-        if k in ("run_dir", "threads", "device", "resume", "seeds", "report", "report_dir") or not hasattr(default, k):
+        if k in ("run_dir", "threads", "device", "resume", "seeds", "archive", "report", "report_dir") or not hasattr(default, k):
             continue
         if v != getattr(default, k) or k == "task":
             flags.append(f"--{k.replace('_', '-')}" + ("" if v is True else f" {v:g}" if isinstance(v, float) else f" {v}"))
@@ -972,14 +977,46 @@ def behaviour_plot(run, out, error_mm=10.0, seed=0):
     plt.close(fig)
 
 
-def write_report(patterns, out_dir="docs", log=print):
-    """docs/RESULTS.md and its figures from run directories (glob patterns, comma-separated)."""
+def match_runs(patterns, flag):
+    """The run directories (config.json + metrics.csv) that comma-separated glob patterns match."""
     import glob
     dirs = sorted({d for p in patterns.split(",") for d in glob.glob(p.strip())
-                   if os.path.exists(os.path.join(d, "metrics.csv"))})
+                   if os.path.exists(os.path.join(d, "config.json")) and os.path.exists(os.path.join(d, "metrics.csv"))})
     if not dirs:
-        raise ArgError(f"--report {patterns!r}: no run directory (config.json + metrics.csv) matches")
-    runs = [load_run(d) for d in dirs]
+        raise ArgError(f"--{flag} {patterns!r}: no run directory (config.json + metrics.csv) matches")
+    return dirs
+
+
+RESULTS_DIR = "results"       # the archived runs the report is built from; the repository keeps them
+ARCHIVED = ("config.json", "metrics.csv", "policy.pt", "curves.png", "train.log")    # and eval*.json
+
+
+def archive_runs(patterns, dest=RESULTS_DIR, log=print):
+    """Copy what the report reads of each finished run (eval.json written) to dest/<run name>/: a few
+    hundred kB a run, where the checkpoint and the replay buffer that stay behind are hundreds of MB.
+    A run dir lives on one machine; the archive travels with the repository, so the report can be
+    regenerated from a fresh clone. Returns the archived directories."""
+    import shutil
+    done = []
+    for d in match_runs(patterns, "archive"):
+        if not os.path.exists(os.path.join(d, "eval.json")):
+            log(f"  {d}: not finished (no eval.json), not archived")
+            continue
+        to = os.path.join(dest, os.path.basename(os.path.normpath(d)))
+        os.makedirs(to, exist_ok=True)
+        names = [f for f in os.listdir(d) if f in ARCHIVED or (f.startswith("eval") and f.endswith(".json"))]
+        for f in names:
+            shutil.copy2(os.path.join(d, f), os.path.join(to, f))
+        log(f"  {d} -> {to} ({', '.join(sorted(names))})")
+        done.append(to)
+    if not done:
+        raise ArgError(f"--archive {patterns!r}: no finished run (with eval.json) to archive")
+    return done
+
+
+def write_report(patterns, out_dir="docs", log=print):
+    """docs/RESULTS.md and its figures from run directories (glob patterns, comma-separated)."""
+    runs = [load_run(d) for d in match_runs(patterns, "report")]
     os.makedirs(out_dir, exist_ok=True)
     md = ["# Results", "", f"Regenerated by `python tacrl.py --report \"{patterns}\"` from {len(runs)} run "
           "directories. Every number below was measured by running this code on a 2-core CPU machine; "
@@ -1197,6 +1234,9 @@ def main(argv=None):
     argv = sys.argv[1:] if argv is None else list(argv)
     try:
         a = parse_args(argv)
+        if a.archive:
+            archive_runs(a.archive)
+            return 0
         if a.report:
             return write_report(a.report, a.report_dir)
         if a.seeds:

@@ -24,6 +24,7 @@ def run(*args):
                                   ["--eval-levels", "5,x"], ["--device", "tpu"], ["--threads", "-1"],
                                   ["--eval", "two-step", "--task", "gear"], ["--seeds", "0,x"], ["--seeds", "1,1"],
                                   ["--aux-weight", "-1"], ["--report", "no/such/run*"], ["--critic", "oracle"],
+                                  ["--archive", "no/such/run*"],
                                   ["--aux-weight", "1"]])          # aux needs --critic multimodal
 def test_bad_arguments_exit_2_with_one_line(args, capsys):
     import tacrl
@@ -109,14 +110,25 @@ def test_training_writes_every_file_resumes_and_evaluates(tmp_path, capsys, monk
     # ... but not for the other task
     assert tacrl.main(["--task", "gear", "--eval", os.path.join(run_dir, "policy.pt")]) == 2
     assert "trained for --task peg" in capsys.readouterr().err
-    # the report lists the run and draws its curves (the two-step row comes from its cache file here:
-    # evaluating the baseline takes a minute)
+    # --archive keeps what the report reads, not the checkpoint or the replay, and skips a run that has
+    # not finished (no eval.json)
+    unfinished = tmp_path / "unfinished"
+    unfinished.mkdir()
+    for f in ("config.json", "metrics.csv"):
+        (unfinished / f).write_text(open(os.path.join(run_dir, f)).read())
+    results = tmp_path / "results"
+    assert tacrl.archive_runs(f"{run_dir},{unfinished}", dest=str(results), log=lines.append) == [str(results / "run")]
+    assert sorted(os.listdir(results / "run")) == ["config.json", "curves.png", "eval.json", "metrics.csv", "policy.pt"]
+    assert any(str(unfinished) in x and "not finished" in x for x in lines)
+    assert tacrl.main(["--archive", str(unfinished)]) == 2
+    # the report, from the archive alone, lists the run and draws its curves (the two-step row comes
+    # from its cache file here: evaluating the baseline takes a minute)
     docs = tmp_path / "docs"
     docs.mkdir()
     (docs / "two-step-peg-20mm.json").write_text(out.read_text())
-    assert tacrl.main(["--report", run_dir, "--report-dir", str(docs)]) == 0
+    assert tacrl.main(["--report", str(results / "*"), "--report-dir", str(docs)]) == 0
     text = (docs / "RESULTS.md").read_text()
-    assert run_dir in text and "Table 1" in text and "Table 2" in text
+    assert str(results / "run") in text and "Table 1" in text and "Table 2" in text
     assert (docs / "fig-peg-runs.png").stat().st_size > 0
     # Fig. 16, which the report draws for our method's first peg run (the tiny run is not one)
     tacrl.behaviour_plot(tacrl.load_run(run_dir), str(docs / "behaviour.png"), error_mm=0.0)
