@@ -126,10 +126,11 @@ def test_training_writes_every_file_resumes_and_evaluates(tmp_path, capsys, monk
     docs = tmp_path / "docs"
     docs.mkdir()
     (docs / "two-step-peg-20mm.json").write_text(out.read_text())
+    (docs / "fig-peg-obs.png").write_bytes(b"an earlier report's figure, of runs this one has not got")
     assert tacrl.main(["--report", str(results / "*"), "--report-dir", str(docs)]) == 0
     text = (docs / "RESULTS.md").read_text()
     assert str(results / "run") in text and "Table 1" in text and "Table 2" in text
-    assert (docs / "fig-peg-runs.png").stat().st_size > 0
+    assert (docs / "fig-peg-runs.png").stat().st_size > 0 and not (docs / "fig-peg-obs.png").exists()
     # Fig. 16, which the report draws for our method's first peg run (the tiny run is not one)
     tacrl.behaviour_plot(tacrl.load_run(run_dir), str(docs / "behaviour.png"), error_mm=0.0)
     assert (docs / "behaviour.png").stat().st_size > 0
