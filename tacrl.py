@@ -992,7 +992,7 @@ ARCHIVED = ("config.json", "metrics.csv", "policy.pt", "curves.png", "train.log"
 
 
 def archive_runs(patterns, dest=RESULTS_DIR, log=print):
-    """Copy what the report reads of each finished run (eval.json written) to dest/<run name>/: about
+    """Copy what the report reads of each finished run (eval.json written) to dest/<run name>/: under
     1 MB a run (policy.pt), where the checkpoint and the replay buffer that stay behind are hundreds of MB.
     A run dir lives on one machine; the archive travels with the repository, so the report can be
     regenerated from a fresh clone. Returns the archived directories."""
