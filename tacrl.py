@@ -1029,6 +1029,8 @@ def write_report(patterns, out_dir="docs", log=print):
     for r in runs:
         ev = r["eval"]
         srs = " / ".join(f"{row['success_rate']:.2f}" for row in ev["rows"]) if ev else "not finished"
+        if ev and tuple(row["error_mm"] for row in ev["rows"]) != LEVELS:   # e.g. a 30 mm run's 10/20/30
+            srs += " (at " + "/".join(f"{row['error_mm']:g}" for row in ev["rows"]) + " mm)"
         md.append(f"| `{r['dir']}` | `{command_of(r['cfg'])}` | {method_of(r['cfg'])} | "
                   f"{len(r['m']['episode'])} | {r['m']['elapsed_s'][-1] / 60:.1f} ({r['cfg'].get('threads') or 'all'}) | "
                   f"{r['m']['e_r_mm'][-1]:.1f} | {r['m']['e_r_mm'].max():.1f} | {srs} |")
