@@ -798,13 +798,14 @@ def plot_groups(groups, keys, out, title):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     fig, axs = plt.subplots(1, len(keys), figsize=(4.2 * len(keys), 3.6), squeeze=False)
+    colours = plt.get_cmap("tab10").colors   # after 10 groups the colours come round again, dashed
     for ax, key in zip(axs[0], keys):
-        for name, runs in groups.items():
+        for i, (name, runs) in enumerate(groups.items()):
             curves = [smooth(r["m"][key]) if key == "return" else r["m"][key] for r in runs]
             mean, lo, hi = bootstrap_band(curves)
             ep = np.arange(1, len(mean) + 1)
             seeds = sorted({r["cfg"]["seed"] for r in runs})
-            line, = ax.plot(ep, mean, lw=1.2, label=f"{name} (seed{'s' * (len(seeds) > 1)} {', '.join(map(str, seeds))})")
+            line, = ax.plot(ep, mean, lw=1.2, color=colours[i % len(colours)], ls="--" if i >= 10 else "-", label=f"{name} (seed{'s' * (len(seeds) > 1)} {', '.join(map(str, seeds))})")
             if len(runs) > 1:
                 ax.fill_between(ep, lo, hi, alpha=0.2, color=line.get_color())
         ax.set_xlabel("episode")
