@@ -239,6 +239,17 @@ def mean_std(x):
     return [float(x.mean()), float(x.std())] if len(x) else None
 
 
+def policy_env(task, act, context="train", roi="task", clearance_mm=0.1, e_r_mm=0.0, gui=False):
+    """A new simulator for evaluating `act` (a loaded policy, or a baseline without these attributes):
+    the controller at the Ex_r it was trained with, the ROI and X_i of the E_r it was trained for.
+    Always a new one: after resetJointState / resetBasePositionAndOrientation, PyBullet still depends
+    on what it simulated before (bullet3 issue 2442; measured here too), so an evaluation in the
+    simulator a run trained in would differ from `--eval policy.pt` in a fresh process."""
+    return sim.AssemblyEnv(task, context, e_r=e_r_mm / 1000, ex_r=getattr(act, "ex_r", None), roi=roi,
+                           clearance=clearance_mm / 1000, gui=gui, use_base_policy=not getattr(act, "vanilla", False),
+                           e_r_max=getattr(act, "e_r_max", None))
+
+
 def evaluate(env, act, episodes, seed, video=None, log=print):
     """Roll out `act(obs) -> action` for `episodes` episodes; returns the Table-1/2-style row:
     success rate, completion time of the successful episodes (s), peak |contact force| per world
@@ -484,6 +495,7 @@ def load_policy(path, task, device="cpu"):
     act.vanilla = bool(d.get("vanilla", False))    # evaluate it the way it was trained:
     act.ex_r = d.get("ex_r")                       # with its controller (None: older files, Ex_r = E_r)
     act.e_r_max = d.get("e_r_max", sim.E_R_FINAL)  # and its view (Eq. 11's ROI) and X_i
+    act.roi = d.get("roi", "task")
     act.enc, act.actor = enc, actor                # for plots that look inside (behaviour_plot)
     return act
 
@@ -674,16 +686,20 @@ def train(a, log=lambda msg: print(msg, flush=True)):
                 f"env {t_env:4.1f}s  upd {t_upd:4.1f}s  elapsed {fmt_time(elapsed)}  ETA {fmt_time(eta)}")
         save_policy(os.path.join(a.run_dir, "policy.pt"), sac, a, ex_r=curr.ranges()[1], e_r_max=env.e_r_max)
         plot_curves(metrics_path, os.path.join(a.run_dir, "curves.png"), f"{a.task}, {a.obs}, {a.curriculum}")
-        # -- Table-2-style evaluation with a seed never used in training
+        # -- Table-2-style evaluation with a seed never used in training, in a new simulator
         act = load_policy(os.path.join(a.run_dir, "policy.pt"), a.task, device)
+        env.close()
+        env = None                   # (closed: the finally below must not close it twice)
+        env = policy_env(a.task, act, a.context, a.roi, a.clearance_mm, gui=a.gui)
         result = {"task": a.task, "obs": a.obs, "curriculum": a.curriculum, "context": a.context, "roi": a.roi,
                   "seed": a.seed, "eval_seed": EVAL_SEED + a.seed, "train_episodes": a.train_episodes,
-                  "train_minutes": round((time.time() - t_start) / 60, 1), "rows": []}
+                  "train_minutes": round((time.time() - t_start) / 60, 1), "simulator": "new", "rows": []}
         levels = sorted({float(x) for x in a.eval_levels.split(",")})
         result["rows"] = evaluate_levels(env, act, levels, a.episodes, EVAL_SEED + a.seed,
                                          log=lambda row: log(format_row(f"TA-MRP {a.task} {row['error_mm']:g}mm", row)))
     finally:
-        env.close()
+        if env is not None:
+            env.close()
     with open(os.path.join(a.run_dir, "eval.json"), "w") as f:
         json.dump(result, f, indent=2)
     log(f"wrote {a.run_dir}/policy.pt, metrics.csv, curves.png, eval.json")
@@ -723,8 +739,9 @@ def plot_curves(metrics_path, out, title=""):
 
 # ---------------------------------------------------------------- the results report (issue 4)
 # The paper's numbers, next to which ours stand. Table 1: simulated peg, 20 trials after 200 episodes.
+VISUAL_PAPER_CRITICS = "visual (critic multimodal)"     # our visual row's critics are privileged (README)
 PAPER_TABLE1 = {"two-step": "0.533, 19.00 +- 5.75, 13.21 / 13.22 / 9.78",
-                "vanilla": "did not learn", "visual": "did not learn",
+                "vanilla": "did not learn", "visual": "did not learn", VISUAL_PAPER_CRITICS: "did not learn",
                 "ours": "1.00, 2.41 +- 1.93, 12.14 / 6.92 / 3.23"}
 # Table 2 (real robot), success rate at 5/10/15/20 mm: the rows that the paper's layout pins down
 PAPER_TABLE2 = {("peg", "train"): "1.00 / 1.00 / 1.00 / 0.80", ("peg", "loc-1"): "1.00 / 1.00 / 0.90 / 0.75",
@@ -877,6 +894,8 @@ def families(cfg):
     """The paper's comparisons a run takes part in: {figure family: curve label}. Only runs with
     the default learning settings (method_of without a suffix) are compared."""
     name = method_of(cfg)
+    if name == VISUAL_PAPER_CRITICS:    # the paper's own visual baseline: its critics see what the actor sees
+        return {"methods": name}
     if "(" in name:
         return {}
     ours_but = lambda **kw: all(cfg[k] == v for k, v in {"obs": "ts-ptv", "curriculum": "adaptive", "roi": "task",
@@ -916,8 +935,7 @@ def eval_cached(run, context, levels=LEVELS, episodes=20, log=print):
         if [(r["error_mm"], r.get("ex_r_mm")) for r in rows] == plan and rows[0]["episodes"] == episodes:
             return rows
     log(f"  evaluating {run['dir']} in {context} at {', '.join(f'{mm:g}' for mm in levels)} mm")
-    env = sim.AssemblyEnv(cfg["task"], context, roi=cfg["roi"], clearance=cfg["clearance_mm"] / 1000,
-                          use_base_policy=not act.vanilla, e_r_max=act.e_r_max)
+    env = policy_env(cfg["task"], act, context, cfg["roi"], cfg["clearance_mm"])
     try:
         rows = evaluate_levels(env, act, levels, episodes, EVAL_SEED + cfg["seed"])
     finally:
@@ -941,8 +959,7 @@ def behaviour_plot(run, out, error_mm=10.0, seed=0):
     import torch
     cfg = run["cfg"]
     act = load_policy(os.path.join(run["dir"], "policy.pt"), cfg["task"])
-    env = sim.AssemblyEnv(cfg["task"], roi=cfg["roi"], e_r=error_mm / 1000, ex_r=act.ex_r,
-                          use_base_policy=not act.vanilla, e_r_max=act.e_r_max)
+    env = policy_env(cfg["task"], act, roi=cfg["roi"], e_r_mm=error_mm)
     feats, poses, wrenches, acts, phase = [], [], [], [], []
 
     def policy_step(obs):                       # the policy, recording its image features and actions
@@ -1052,7 +1069,7 @@ def write_report(patterns, out_dir="docs", log=print):
         with open(path, "w") as f:
             json.dump(ts_row, f, indent=2)
     table1 = [("two-step", [ts_row], "-")]
-    for name in ("vanilla", "visual", "ours"):
+    for name in ("vanilla", "visual", VISUAL_PAPER_CRITICS, "ours"):
         done = [r for r in runs if r["cfg"]["task"] == "peg" and method_of(r["cfg"]) == name and r["eval"]]
         rows = [row for r in done for row in r["eval"]["rows"] if row["error_mm"] == 20.0]
         table1.append((name, rows, ", ".join(sorted({str(len(r["m"]["episode"])) for r in done}))))
@@ -1252,6 +1269,8 @@ def main(argv=None):
             train(a)
             return 0
         act = None if a.eval in BASELINES else load_policy(a.eval, a.task, pick_device(a.device))
+        if act is not None and act.roi != a.roi:      # its encoder learned that view, not another
+            raise ArgError(f"--eval {a.eval!r}: this policy was trained with --roi {act.roi}, not {a.roi}")
     except ArgError as e:
         print(f"tacrl: error: {e}", file=sys.stderr)
         return 2
@@ -1260,9 +1279,7 @@ def main(argv=None):
         print(f"\ninterrupted: every finished episode is saved{where}", file=sys.stderr)
         return 130
     print("config:", asdict(a))
-    env = sim.AssemblyEnv(a.task, a.context, e_r=a.error_mm / 1000, ex_r=getattr(act, "ex_r", None), roi=a.roi,
-                          clearance=a.clearance_mm / 1000, gui=a.gui, use_base_policy=not getattr(act, "vanilla", False),
-                          e_r_max=getattr(act, "e_r_max", None))
+    env = policy_env(a.task, act, a.context, a.roi, a.clearance_mm, a.error_mm, a.gui)
     if a.eval == "initial":
         act = lambda obs: np.zeros(6)          # noqa: E731  the hand-designed policy alone, F_d = 0
     elif a.eval == "two-step":

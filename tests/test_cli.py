@@ -52,7 +52,7 @@ def test_initial_policy_row_and_json(tmp_path):
 
 
 TINY = ["--task", "peg", "--error-mm", "1", "--train-episodes", "3", "--warmup", "1", "--updates", "2",
-        "--batch", "8", "--episodes", "1", "--eval-levels", "0", "--buffer", "40"]
+        "--batch", "8", "--episodes", "1", "--eval-levels", "1", "--buffer", "40"]
 
 
 def test_training_writes_every_file_resumes_and_evaluates(tmp_path, capsys, monkeypatch):
@@ -92,10 +92,16 @@ def test_training_writes_every_file_resumes_and_evaluates(tmp_path, capsys, monk
     kept = sorted(os.listdir(os.path.join(run_dir, "replay")))
     assert kept == [f"ep_{i + 1:06d}.npz" for i in range(keep, 3)], (steps, kept)
     ev = json.loads(open(os.path.join(run_dir, "eval.json")).read())
-    assert [row["error_mm"] for row in ev["rows"]] == [0.0] and ev["eval_seed"] != ev["seed"]
+    assert [row["error_mm"] for row in ev["rows"]] == [1.0] and ev["eval_seed"] != ev["seed"] and ev["simulator"] == "new"
+    # --eval of policy.pt in a fresh process repeats eval.json to the last digit: training evaluates in a
+    # fresh simulator, not in the one it trained in (PyBullet carries state from episode to episode)
+    pol = os.path.join(run_dir, "policy.pt")
+    again = tmp_path / "again.json"
+    assert tacrl.main(["--task", "peg", "--eval", pol, "--error-mm", "1", "--episodes", "1", "--json", str(again)]) == 0
+    keys = ("success_rate", "cumulative_reward", "contact_force_x_N", "contact_force_y_N", "contact_force_z_N")
+    assert {k: ev["rows"][0][k] for k in keys} == {k: json.loads(again.read_text())[k] for k in keys}
     # the saved policy keeps the exploration range it was trained with (Ex_r 2 mm, the floor, here) ...
     import torch
-    pol = os.path.join(run_dir, "policy.pt")
     d = torch.load(pol, weights_only=True)
     assert ev["rows"][0]["ex_r_mm"] == round(max(d["ex_r"], 0.002) * 1000, 3) == 2.0
     assert d["e_r_max"] == 0.02              # and the env it saw: ROI and X_i for 20 mm, the least there is
@@ -110,6 +116,9 @@ def test_training_writes_every_file_resumes_and_evaluates(tmp_path, capsys, monk
     # ... but not for the other task
     assert tacrl.main(["--task", "gear", "--eval", os.path.join(run_dir, "policy.pt")]) == 2
     assert "trained for --task peg" in capsys.readouterr().err
+    # ... nor in another view than it learned (a silent default would evaluate the wrong images)
+    assert tacrl.main(["--task", "peg", "--eval", pol, "--roi", "200"]) == 2
+    assert "trained with --roi task, not 200" in capsys.readouterr().err
     # --archive keeps what the report reads, not the checkpoint or the replay, and skips a run that has
     # not finished (no eval.json)
     unfinished = tmp_path / "unfinished"
@@ -130,7 +139,7 @@ def test_training_writes_every_file_resumes_and_evaluates(tmp_path, capsys, monk
     assert tacrl.main(["--report", str(results / "*"), "--report-dir", str(docs)]) == 0
     text = (docs / "RESULTS.md").read_text()
     assert str(results / "run") in text and "Table 1" in text and "Table 2" in text
-    assert "1.00 (at 0 mm)" in text or "0.00 (at 0 mm)" in text    # its levels are named: not the usual 5/10/15/20
+    assert "1.00 (at 1 mm)" in text or "0.00 (at 1 mm)" in text    # its levels are named: not the usual 5/10/15/20
     assert (docs / "fig-peg-runs.png").stat().st_size > 0 and not (docs / "fig-peg-obs.png").exists()
     # Fig. 16, which the report draws for our method's first peg run (the tiny run is not one)
     tacrl.behaviour_plot(tacrl.load_run(run_dir), str(docs / "behaviour.png"), error_mm=0.0)
@@ -159,6 +168,7 @@ def test_corrupt_checkpoint_and_policy_are_one_line_errors(tmp_path, capsys):
     ({}, {"methods": "ours", "roi": "task attention (Eq. 11)", "curriculum": "curriculum adaptive, 20 mm"}),
     ({"vanilla": True}, {"methods": "vanilla"}),
     ({"obs": "v"}, {"methods": "visual"}),
+    ({"obs": "v", "critic": "multimodal"}, {"methods": "visual (critic multimodal)"}),   # the paper's critics
     ({"obs": "pt", "curriculum": "ex10"}, {"obs": "P-T"}),
     ({"curriculum": "ex10"}, {"obs": "Time-series P-T-V"}),
     ({"curriculum": "none", "error_mm": 10.0}, {"curriculum": "no curriculum, 10 mm"}),
