@@ -123,7 +123,8 @@ class HybridPolicy:
     tau(t) from X^_i to X^_g and the stiffness K of Eq. 9; the residual pi(s) supplies F_d (Eq. 12).
 
     x_i_hat, x_g_hat: estimated pre-assembly and goal poses (p, R); ex_r (6,): exploration range;
-    f_max (6,): contact safety limit; m (6,): virtual mass; zeta: damping ratio of the compliance.
+    f_max (6,): contact safety limit; m (6,): virtual mass; duration: s from X^_i to X^_g (inf:
+    X_d stays at X^_i, no trajectory guidance); zeta: damping ratio of the compliance.
     """
     x_i_hat: tuple
     x_g_hat: tuple

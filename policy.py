@@ -22,11 +22,17 @@ variants of the ablation (--obs) drop modalities:
     v       image only (the 'visual' baseline)       6-d
 The fused vector goes through LayerNorm and tanh, then the 2 x 256 heads.
 
-Critics: either the paper's (twin Q on the same multimodal encoder, which the actor then shares)
-or privileged ones (StateEncoder: the last pose and wrench readings plus a state vector that only
-training knows, here the offset from the true goal); the actor is the same in both.
+Critics: either the paper's (twin Q on the same multimodal encoder, which the actor then reads with
+the gradient stopped) or privileged ones (StateEncoder: the last pose and wrench readings plus a
+state vector that only training knows, here the offset from the true goal; the actor then has a
+multimodal encoder of its own). The actor is the same in both and never reads the state vector.
+
+The replay buffer keeps its episodes on disk as well when given a directory, so that a run
+interrupted between episodes restarts with the same buffer.
 """
+import collections
 import copy
+import os
 
 import numpy as np
 import torch
@@ -172,11 +178,14 @@ def act(enc, actor, obs, deterministic=False, device="cpu"):
 
 # ---------------------------------------------------------------- replay buffer
 class ReplayBuffer:
-    """Ring buffer of transitions (o, a, r, o', terminated, aux). Images are kept as uint8 (6.4 kB
-    each); o' is stored next to o, which doubles the memory but keeps sampling a plain index.
-    aux (aux_dim,) is the auxiliary target of o (SAC's aux loss); aux_dim 0 stores none."""
+    """Ring buffer of transitions (o, a, r, o', terminated). Images are kept as uint8 (6.4 kB each);
+    o' is stored next to o, which doubles the memory but keeps sampling a plain index.
 
-    def __init__(self, capacity, obs_shapes, act_dim=6, aux_dim=0):
+    directory: where given, every episode is also written there as ep_NNNNNN.npz (plain arrays:
+    np.load needs no pickle), the files that the ring no longer holds are deleted, and `restore`
+    reads the rest back after a restart."""
+
+    def __init__(self, capacity, obs_shapes, act_dim=6, directory=None):
         self.capacity, self.n, self.i = capacity, 0, 0
         self.obs = {k: np.zeros((capacity, *s), np.uint8 if k == "image" else np.float32)
                     for k, s in obs_shapes.items()}
@@ -184,30 +193,63 @@ class ReplayBuffer:
         self.act = np.zeros((capacity, act_dim), np.float32)
         self.rew = np.zeros(capacity, np.float32)
         self.term = np.zeros(capacity, np.float32)
-        self.aux = np.zeros((capacity, aux_dim), np.float32)
+        self.directory = directory
+        self.files = collections.deque()       # (path, transitions) of the episodes on disk, oldest first
+        if directory:
+            os.makedirs(directory, exist_ok=True)
 
     def __len__(self):
         return self.n
 
-    def add_episode(self, ep):
-        """ep: {'obs': {k: (T + 1, ...)}, 'act': (T, 6), 'rew': (T,), 'term': (T,)} and, when the
-        buffer keeps aux targets, 'aux': (T + 1, aux_dim): the T + 1 observations of one episode
-        and its T transitions."""
+    def add_episode(self, ep, number=None):
+        """ep: {'obs': {k: (T + 1, ...)}, 'act': (T, 6), 'rew': (T,), 'term': (T,)}: the T + 1
+        observations of one episode and its T transitions; obs keys the buffer was not built for are
+        ignored. number: the episode's number, which names its file (with a directory)."""
         T = len(ep["act"])
         j = (self.i + np.arange(T)) % self.capacity          # the slots this episode takes
         for k in self.obs:
             self.obs[k][j] = ep["obs"][k][:T]
             self.next_obs[k][j] = ep["obs"][k][1:T + 1]
         self.act[j], self.rew[j], self.term[j] = ep["act"], ep["rew"], ep["term"]
-        if self.aux.shape[1]:
-            self.aux[j] = ep["aux"][:T]
         self.i = (self.i + T) % self.capacity
         self.n = min(self.n + T, self.capacity)
+        if self.directory and number is not None:
+            path = os.path.join(self.directory, f"ep_{number:06d}.npz")
+            np.savez(path + ".tmp.npz", act=ep["act"], rew=ep["rew"], term=ep["term"],
+                     **{"obs_" + k: ep["obs"][k] for k in self.obs})
+            os.replace(path + ".tmp.npz", path)              # an interrupt leaves no half-written file
+            self.files.append((path, T))
+            self._drop_unheld()
+
+    def _drop_unheld(self):
+        """Delete the oldest files while the newer ones alone fill the ring."""
+        held = sum(n for _, n in self.files)
+        while self.files and held - self.files[0][1] >= self.capacity:
+            path, n = self.files.popleft()
+            os.remove(path)
+            held -= n
+
+    def restore(self, upto):
+        """After a restart: delete the files of episodes after `upto` (one cut short by an interrupt
+        is not in the checkpoint) and those the ring no longer holds, then load the rest."""
+        on_disk = sorted((int(f[3:9]), os.path.join(self.directory, f)) for f in os.listdir(self.directory)
+                         if f.startswith("ep_") and f.endswith(".npz") and ".tmp" not in f)
+        for number, path in on_disk:
+            if number > upto:
+                os.remove(path)
+                continue
+            with np.load(path, allow_pickle=False) as z:
+                self.files.append((path, len(z["act"])))
+        self._drop_unheld()
+        for path, _ in self.files:
+            with np.load(path, allow_pickle=False) as z:
+                self.add_episode({"obs": {k[4:]: z[k] for k in z.files if k.startswith("obs_")},
+                                  "act": z["act"], "rew": z["rew"], "term": z["term"]})
 
     def sample(self, batch, rng):
         idx = rng.integers(0, self.n, batch)
         return ({k: v[idx] for k, v in self.obs.items()}, self.act[idx], self.rew[idx],
-                {k: v[idx] for k, v in self.next_obs.items()}, self.term[idx], self.aux[idx])
+                {k: v[idx] for k, v in self.next_obs.items()}, self.term[idx])
 
 
 # ---------------------------------------------------------------- soft actor-critic
@@ -220,92 +262,63 @@ def td_target(r, terminated, q_next, logp_next, alpha, gamma):
 
 class SAC:
     """SAC (Haarnoja et al. 2018) with twin Q, target networks (Polyak), automatic temperature
-    (target entropy -|A|). TD target: y = r + gamma (1 - terminated) (min Q'(s', a') - alpha log pi(a'|s')),
-    so a time-out (truncated) bootstraps and only a real end (success) does not.
+    (target entropy -|A| unless given).
 
-    shared_encoder: the actor reads the critic's encoder with the gradient stopped (as in SAC-AE
-    and DrQ), so the encoder learns from the TD error only and each update encodes o and o' once
-    each (o' by the target encoder, also for the next action a'); otherwise the actor has an
-    encoder of its own, trained through the actor loss.
-
-    prior_weight: a penalty prior_weight * |mean action|^2 in the actor loss (not in the paper): the
-    residual stays near F_d = 0, the hand-designed policy, unless the critics value leaving it more.
-
-    state_dim: > 0 makes the critics privileged (an asymmetric actor-critic, Pinto et al. 2018; not in
-    the paper): they read StateEncoder(obs), which includes obs['state'] (state_dim,), instead of the
-    multimodal encoder, and the actor has a multimodal encoder of its own, trained through the actor
-    loss. The critics then need not learn to see the hole before they can say which way it lies.
-
-    aux_dim, aux_weight: an auxiliary regression (not in the paper) from the critic's fusion vector
-    to a target the buffer stores with each o, added to the critic loss with this weight. tacrl
-    uses the tip's offset from the true goal, X - X_g, the quantity Eq. 17's reward is computed
-    from: it gives the CNN a direct gradient towards seeing where the hole is. aux_dim 0: none.
+    Critics: with state_dim 0, the paper's: twin Q on the multimodal encoder, which the actor reads
+    with the gradient stopped (as in SAC-AE and DrQ), so the encoder learns from the TD error only
+    and each update encodes o and o' once each (o' by the target encoder, also for a'). With
+    state_dim > 0, privileged (an asymmetric actor-critic, Pinto et al. 2018; not in the paper):
+    they read StateEncoder(obs), which includes obs['state'] (state_dim,), and the actor has a
+    multimodal encoder of its own, trained through the actor loss. The critics then need not
+    learn to see the hole before they can say which way it lies.
     """
 
     def __init__(self, obs_kind="ts-ptv", pose_scale=np.ones(6), wrench_scale=np.ones(6), act_dim=6,
-                 lr=3e-4, gamma=0.99, tau=0.005, init_alpha=0.1, shared_encoder=True, aux_dim=0,
-                 aux_weight=1.0, target_entropy=None, prior_weight=0.0, state_dim=0, device="cpu"):
-        shared_encoder = shared_encoder and not state_dim        # a privileged critic cannot lend its encoder
-        self.device, self.gamma, self.tau, self.shared = torch.device(device), gamma, tau, shared_encoder
+                 lr=3e-4, gamma=0.99, tau=0.005, init_alpha=0.1, target_entropy=None, state_dim=0, device="cpu"):
+        self.device, self.gamma, self.tau = torch.device(device), gamma, tau
+        self.shared = not state_dim                  # the paper's critics lend the actor their encoder
         enc = lambda: Encoder(obs_kind, pose_scale, wrench_scale).to(self.device)  # noqa: E731
-        self.enc = StateEncoder(state_dim, pose_scale, wrench_scale).to(self.device) if state_dim else enc()
+        self.enc = enc() if self.shared else StateEncoder(state_dim, pose_scale, wrench_scale).to(self.device)
         self.q = TwinQ(self.enc.out_dim, act_dim).to(self.device)
         self.enc_targ, self.q_targ = copy.deepcopy(self.enc), copy.deepcopy(self.q)
         for p in list(self.enc_targ.parameters()) + list(self.q_targ.parameters()):
             p.requires_grad_(False)
-        self.actor_enc = None if shared_encoder else enc()
-        self.actor = Actor((self.enc if shared_encoder else self.actor_enc).out_dim, act_dim).to(self.device)
+        self.actor_enc = self.enc if self.shared else enc()      # what the actor reads: never obs['state']
+        self.actor = Actor(self.actor_enc.out_dim, act_dim).to(self.device)
         self.log_alpha = torch.tensor(np.log(init_alpha), dtype=torch.float32, device=self.device,
                                       requires_grad=True)
         self.target_entropy = -float(act_dim) if target_entropy is None else float(target_entropy)
-        self.prior_weight = prior_weight
         self._online_params = list(self.enc.parameters()) + list(self.q.parameters())
         self._targ_params = list(self.enc_targ.parameters()) + list(self.q_targ.parameters())
-        self.aux_weight = aux_weight
-        self.aux_head = nn.Linear(self.enc.out_dim, aux_dim).to(self.device) if aux_dim else None
-        aux_params = list(self.aux_head.parameters()) if aux_dim else []
-        self.q_opt = torch.optim.Adam(self._online_params + aux_params, lr=lr, foreach=True)
-        actor_params = list(self.actor.parameters()) + ([] if shared_encoder else list(self.actor_enc.parameters()))
+        self.q_opt = torch.optim.Adam(self._online_params, lr=lr, foreach=True)
+        actor_params = list(self.actor.parameters()) + ([] if self.shared else list(self.actor_enc.parameters()))
         self.pi_opt = torch.optim.Adam(actor_params, lr=lr, foreach=True)
         self.alpha_opt = torch.optim.Adam([self.log_alpha], lr=lr)
 
-    # -- acting ------------------------------------------------------------------------
-    def _tensor_obs(self, obs):
-        return {k: torch.as_tensor(v, device=self.device) for k, v in obs.items()}
-
     def act(self, obs, deterministic=False):
         """One env observation (unbatched dict) -> action (6,) in [-1, 1]."""
-        return act(self.enc if self.shared else self.actor_enc, self.actor, obs, deterministic, self.device)
+        return act(self.actor_enc, self.actor, obs, deterministic, self.device)
 
-    # -- learning ----------------------------------------------------------------------
     def update(self, batch):
         """One gradient step on a batch from ReplayBuffer.sample; returns the losses."""
-        o, a, r, o2, term, aux = batch
-        o, o2 = self._tensor_obs(o), self._tensor_obs(o2)
-        a, r, term, aux = (torch.as_tensor(x, device=self.device) for x in (a, r, term, aux))
+        o, a, r, o2, term = batch
+        o, o2 = ({k: torch.as_tensor(v, device=self.device) for k, v in x.items()} for x in (o, o2))
+        a, r, term = (torch.as_tensor(x, device=self.device) for x in (a, r, term))
         alpha = self.log_alpha.exp().detach()
+        # critics: regress Q(o, a) on the TD target y (td_target)
         with torch.no_grad():
-            # o' is encoded once, by the target encoder, for both a' and Q' (shared encoder)
-            z2 = self.enc_targ(o2)
+            z2 = self.enc_targ(o2)                   # (B, n_feat): o' encoded once, by the target encoder
             a2, logp2 = self.actor(z2 if self.shared else self.actor_enc(o2))
             q1_t, q2_t = self.q_targ(z2, a2)
             y = td_target(r, term, torch.min(q1_t, q2_t), logp2, alpha, self.gamma)
         z = self.enc(o)
         q1, q2 = self.q(z, a)
         q_loss = F.mse_loss(q1, y) + F.mse_loss(q2, y)
-        aux_loss = F.mse_loss(self.aux_head(z), aux) if self.aux_head is not None else torch.zeros(())
         self.q_opt.zero_grad(set_to_none=True)
-        (q_loss + self.aux_weight * aux_loss).backward()
+        q_loss.backward()
         self.q_opt.step()
 
-        out = {"q_loss": q_loss.item(), "aux_loss": aux_loss.item(), "alpha": alpha.item(),
-               **self._update_actor(o, z, alpha)}
-        with torch.no_grad():   # Polyak averaging of the targets: p_targ <- (1 - tau) p_targ + tau p
-            torch._foreach_lerp_(self._targ_params, self._online_params, self.tau)
-        return out
-
-    def _update_actor(self, o, z, alpha):
-        """Actor: maximise min Q(s, pi(s)) - alpha log pi, the critic only read; then the temperature."""
+        # actor: maximise min Q(o, pi(o)) - alpha log pi, the critics only read
         z_pi = z.detach() if self.shared else self.actor_enc(o)
         a_pi, logp = self.actor(z_pi)
         for p in self.q.parameters():
@@ -314,28 +327,27 @@ class SAC:
         for p in self.q.parameters():
             p.requires_grad_(True)
         pi_loss = (alpha * logp - torch.min(q1_pi, q2_pi)).mean()
-        if self.prior_weight:   # residual prior: the mean action pays prior_weight * |a|^2 for leaving F_d = 0
-            a_mean, _ = self.actor(z_pi, deterministic=True, with_logp=False)
-            pi_loss = pi_loss + self.prior_weight * (a_mean ** 2).sum(-1).mean()
         self.pi_opt.zero_grad(set_to_none=True)
         pi_loss.backward()
         self.pi_opt.step()
 
+        # temperature: towards the target entropy
         alpha_loss = -(self.log_alpha * (logp.detach() + self.target_entropy)).mean()
         self.alpha_opt.zero_grad(set_to_none=True)
         alpha_loss.backward()
         self.alpha_opt.step()
 
-        return {"pi_loss": pi_loss.item(), "entropy": -logp.mean().item()}
+        with torch.no_grad():   # Polyak averaging of the targets: p_targ <- (1 - tau) p_targ + tau p
+            torch._foreach_lerp_(self._targ_params, self._online_params, self.tau)
+        return {"q_loss": q_loss.item(), "pi_loss": pi_loss.item(), "alpha": alpha.item(),
+                "entropy": -logp.mean().item()}
 
     # -- checkpoints -------------------------------------------------------------------
     def modules(self):
         m = {"enc": self.enc, "q": self.q, "enc_targ": self.enc_targ, "q_targ": self.q_targ, "actor": self.actor,
              "q_opt": self.q_opt, "pi_opt": self.pi_opt, "alpha_opt": self.alpha_opt}
-        if self.actor_enc is not None:
+        if not self.shared:
             m["actor_enc"] = self.actor_enc
-        if self.aux_head is not None:
-            m["aux_head"] = self.aux_head
         return m
 
     def state_dict(self):
@@ -348,3 +360,38 @@ class SAC:
             v.load_state_dict(d[k])
         with torch.no_grad():
             self.log_alpha.copy_(d["log_alpha"])
+
+
+# ---------------------------------------------------------------- a trained policy, as evaluation loads it
+POLICY_FORMAT = "tacrl-policy-2"
+
+
+def save_atomic(obj, path):
+    """torch.save to path.tmp, then rename: an interrupt leaves the old file or the new one."""
+    torch.save(obj, path + ".tmp")
+    os.replace(path + ".tmp", path)
+
+
+def save_policy(path, sac, meta):
+    """policy.pt: the actor and the encoder it reads (the critics stay behind), and meta, a dict of
+    plain values that evaluation must know of training ('obs' among them: the encoder's kind)."""
+    save_atomic({"format": POLICY_FORMAT, **meta, "encoder": sac.actor_enc.state_dict(),
+                 "actor": sac.actor.state_dict()}, path)
+
+
+class TrainedPolicy:
+    """A policy.pt's contents (torch.load) as act(obs) -> action: the deterministic actor (the
+    Gaussian's mean). .meta holds what save_policy was given."""
+
+    def __init__(self, d, device="cpu"):
+        if not isinstance(d, dict) or d.get("format") != POLICY_FORMAT:
+            raise ValueError("not a tacrl policy file")
+        self.meta = {k: v for k, v in d.items() if k not in ("format", "encoder", "actor")}
+        self.device = device
+        self.encoder = Encoder(d["obs"]).to(device).eval()
+        self.encoder.load_state_dict(d["encoder"])
+        self.actor = Actor(self.encoder.out_dim).to(device).eval()
+        self.actor.load_state_dict(d["actor"])
+
+    def __call__(self, obs):
+        return act(self.encoder, self.actor, obs, deterministic=True, device=self.device)

@@ -8,9 +8,11 @@ that the clearances are exact:
     gear  a 12-tooth gear slides 15 mm down a 10 mm shaft (0.1 mm clearance) while meshing with a
           fixed mating gear, so x, y and the rotation about z must align (about 0.03 rad)
 
-`AssemblyEnv` is Gymnasium-style without gymnasium: reset(seed, options) -> (obs, info) and
-step(action) -> (obs, reward, terminated, truncated, info). The policy runs at 5 Hz, the admittance
-controller of control.py at 120 Hz, physics at 240 Hz. What this file implements of the paper:
+`AssemblyEnv` follows Gymnasium's API: reset(seed, options) -> (obs, info) and step(action) -> (obs,
+reward, terminated, truncated, info). With gymnasium installed (`pip install -e ".[gym]"`) it is a
+gymnasium.Env with spaces and render(), and importing sim registers `tacrl/PegInsertion-v0` and
+`tacrl/GearInsertion-v0`; without it, the same class works on its own. The policy runs at 5 Hz, the
+admittance controller of control.py at 120 Hz, physics at 240 Hz. What this file implements of the paper:
     Eq. 11     task-attention ROI             -> roi_box, render_roi
     Eq. 13-15  error injection                -> AssemblyEnv.reset
     Eq. 17-18  reward and success             -> reward, AssemblyEnv.step
@@ -56,6 +58,12 @@ with quiet_c_output():
 
 import control as ctl
 
+try:                   # optional: the env is a gymnasium.Env where gymnasium is installed
+    import gymnasium
+    from gymnasium import spaces
+except ImportError:
+    gymnasium = None
+
 ASSETS = os.path.join(os.path.dirname(os.path.abspath(__file__)), "assets")
 
 # ---------------------------------------------------------------- constants (paper Sec. 5.1.1)
@@ -68,6 +76,13 @@ IMG = 80                                            # the policy's image is IMG 
 F_MAX = 10.0                                        # F^max, N
 TAU_MAX = 1.0                                       # torque analogue of F^max, N m (our choice)
 F_MAX6 = np.array([F_MAX] * 3 + [TAU_MAX] * 3)
+# The wrist sensor saturates at its measuring range: Robotiq FT 300, a sensor made for UR arms,
+# +-300 N and +-30 N m (Robotiq's FT 300 instruction manual; its 16-bit data stream carries F x 100
+# and M x 1000, so it cannot report more than 327 N and 32.7 N m). Contact forces here stay far below.
+FT_RANGE = np.array([300.0] * 3 + [30.0] * 3, np.float32)
+# The observed pose relative to X^_g lies within these (m, rad): the tip cannot get 2 m from the
+# board (the UR5 reaches 0.85 m from its shoulder) and a rotation vector's parts lie within +-pi.
+POSE_BOUND = np.array([2.0] * 3 + [np.pi] * 3, np.float32)
 W_REWARD = (1.0, 0.8, 1.0)                          # w1, w2, w3 of Eq. 17
 R_SUCC = 100.0                                      # r_succ of Eq. 18
 E_TH = 0.002                                        # E_th of Eq. 18, m: tip within 2 mm of X_g
@@ -470,7 +485,8 @@ class World:
         # tau_tip = tau - r x f with r = (0, 0, tip_offset) from the sensor origin to the tip
         # (written out: np.cross costs more than the rest of the tick's arithmetic)
         d = self.tip_offset
-        return np.array([f[0], f[1], f[2], tau[0] + d * f[1], tau[1] - d * f[0], tau[2]])
+        w_tip = np.array([f[0], f[1], f[2], tau[0] + d * f[1], tau[1] - d * f[0], tau[2]])
+        return np.clip(w_tip, -FT_RANGE, FT_RANGE)                     # the sensor's measuring range
 
     def move_to(self, x):
         """Teleport the arm so that the tip is at pose x (IK from the home pose, so deterministic)."""
@@ -490,12 +506,12 @@ class World:
         self.bc.setJointMotorControlArray(self.robot, self.arm, p.VELOCITY_CONTROL, targetVelocities=qdot.tolist(),
                                           forces=self.max_force)
 
-    def tick(self, policy, t, f_tool, f_d):
-        """One 120 Hz controller tick of the hybrid policy (Eq. 6): read the pose, feed the last
-        wrench (tool frame, turned to world axes) and F_d to the admittance law, command the joint
-        velocities, step physics. Returns the new wrench reading (tool frame, at the tip)."""
+    def tick(self, controller, t, f_tool, f_d):
+        """One 120 Hz tick of the hybrid policy's controller (Eq. 6, a control.HybridPolicy): read the
+        pose, feed the last wrench (tool frame, turned to world axes) and F_d to the admittance law,
+        command the joint velocities, step physics. Returns the new wrench reading (tool frame, at the tip)."""
         x = self.tool_pose()
-        qdot = policy(t, x, to_world(x[1], f_tool), f_d, self.jacobian(self.joint_positions()))
+        qdot = controller(t, x, to_world(x[1], f_tool), f_d, self.jacobian(self.joint_positions()))
         self.command(qdot)
         return self.wrench_tool(self.step_physics(PHYSICS_PER_CONTROL))
 
@@ -557,10 +573,11 @@ def probe(world, x_start, x_target, f_d=np.zeros(6), ex=(1e-5, 1e-5, 0.05, 0.02,
     world.step_physics(4)
     world.move_to(x_start)
     world.tare()
-    pol = ctl.HybridPolicy(x_start, x_target, np.asarray(ex, float), F_MAX6, MASS, duration, ZETA, 1.0 / CONTROL_HZ)
+    controller = ctl.HybridPolicy(x_start, x_target, np.asarray(ex, float), F_MAX6, MASS, duration, ZETA,
+                                  1.0 / CONTROL_HZ)
     f_tool, n, hist, normal = np.zeros(6), int(seconds * CONTROL_HZ), [], []
     for i in range(n):
-        f_tool = world.tick(pol, i / CONTROL_HZ, f_tool, f_d)
+        f_tool = world.tick(controller, i / CONTROL_HZ, f_tool, f_d)
         hist.append(f_tool)
         normal.append(sum(c[9] for c in world.bc.getContactPoints(world.robot)))
     return world.tool_pose(), np.mean(hist[-CONTROL_HZ:], 0), float(np.mean(normal[-CONTROL_HZ:]))
@@ -629,7 +646,7 @@ def preset_roi(name, centre):
 
 
 # ---------------------------------------------------------------- the env
-class AssemblyEnv:
+class AssemblyEnv(gymnasium.Env if gymnasium else object):
     """Residual-RL assembly env (Algorithm 1's 'interact with environment').
 
     task: 'peg' or 'gear'; context: a name in CONTEXTS; e_r: guidance error range E_r (m, x y z;
@@ -637,29 +654,41 @@ class AssemblyEnv:
     Ex_r (m), sets K through Eq. 8-9, floored at EX_MIN; roi: 'task' (Eq. 11) or a preset name;
     clearance: diametral clearance, m; e_r_max: the largest E_r this env will be set to (at least
     E_R_FINAL and e_r): Eq. 11's ROI covers it, and X_i is raised where needed so that its z error
-    still starts the tool CLEAR of the parts (from 20 mm up: at 30 mm X_i is 40 mm above them).
+    still starts the tool CLEAR of the parts (from 20 mm up: at 30 mm X_i is 40 mm above them);
+    trajectory: False holds X_d at X^_i (the vanilla baseline: no trajectory guidance, the residual
+    acts alone through the same compliance); render_mode: None or 'rgb_array' (render() is the
+    external camera's view).
 
     obs = {'image': (80, 80) uint8, 'pose_hist': (32, 6) float32 [x y z (m) rx ry rz (rad)] of the
     tip relative to X^_g in X^_g's frame, newest last, 'wrench_hist': (32, 6) float32 [F (N), T (N m)]
     in the tool frame at the tip, newest last}.
     action (6,) in [-1, 1] -> F_d = action * F_max/2 per axis: +-5 N, +-0.5 N m.
     """
+    metadata = {"render_modes": ["rgb_array"], "render_fps": POLICY_HZ}
 
     def __init__(self, task="peg", context="train", e_r=0.0, ex_r=None, roi="task", clearance=1e-4,
-                 gui=False, image=True, use_base_policy=True, e_r_max=None):
+                 gui=False, image=True, trajectory=True, e_r_max=None, render_mode=None):
         if task not in ("peg", "gear"):
             raise ValueError(f"unknown task {task!r} (peg, gear)")
         if context not in CONTEXTS:
             raise ValueError(f"unknown context {context!r} ({', '.join(CONTEXTS)})")
         if roi != "task" and roi not in ROI_PRESETS:
             raise ValueError(f"unknown roi {roi!r} (task, {', '.join(ROI_PRESETS)})")
+        if render_mode not in (None, "rgb_array"):
+            raise ValueError(f"unknown render_mode {render_mode!r} (None, 'rgb_array')")
         self.task, self.context, self.roi_name, self.image_on = task, context, roi, image
-        self.use_base_policy = use_base_policy
+        self.trajectory, self.render_mode = trajectory, render_mode
+        if gymnasium is not None:
+            self.observation_space = spaces.Dict({
+                "image": spaces.Box(0, 255, (IMG, IMG), np.uint8),
+                "pose_hist": spaces.Box(np.tile(-POSE_BOUND, (HIST, 1)), np.tile(POSE_BOUND, (HIST, 1)), dtype=np.float32),
+                "wrench_hist": spaces.Box(np.tile(-FT_RANGE, (HIST, 1)), np.tile(FT_RANGE, (HIST, 1)), dtype=np.float32)})
+            self.action_space = spaces.Box(-1.0, 1.0, (6,), np.float32)
         self.world = World(task, clearance, gui)
         self.e_r_max = max(E_R_FINAL, e_r, e_r_max or 0.0)
         self.approach = max(APPROACH, round(self.e_r_max + CLEAR, 6))
         self.set_ranges(e_r, ex_r)
-        self.rng = np.random.default_rng()
+        self.np_random = np.random.default_rng()      # the errors' generator (gymnasium's name for it)
         self.roi = None
         self.t, self.steps = 0.0, 0
 
@@ -691,12 +720,12 @@ class AssemblyEnv:
     def reset(self, seed=None, options=None):
         """Eq. 13-15: e ~ U(-1, 1) * E_r in x, y, z and rotation about z; X^_i = X_i + e, X^_g = X_g + e.
         options: 'error' (4,) fixes e; 'goal_shift' (4,) moves the board (and so X_g) by (dx, dy, dz, dyaw)."""
-        if seed is not None:
-            self.rng = np.random.default_rng(seed)
+        if seed is not None:      # as gymnasium.Env.reset(seed) does: the same stream as default_rng(seed)
+            self.np_random = np.random.default_rng(seed)
         options = options or {}
         w, ctx = self.world, CONTEXTS[self.context]
         scale = np.array([self.e_r] * 3 + [E_ROT_FINAL * self.e_r / E_R_FINAL])
-        e = np.asarray(options["error"], float) if "error" in options else self.rng.uniform(-1, 1, 4) * scale  # Eq. 13
+        e = np.asarray(options["error"], float) if "error" in options else self.np_random.uniform(-1, 1, 4) * scale  # Eq. 13
         self.x_g, self.x_i = w.place(ctx, np.asarray(options.get("goal_shift", np.zeros(4)), float), self.approach)
         R_e = ctl.rot_z(e[3])
         self.x_g_hat = (self.x_g[0] + e[:3], R_e @ self.x_g[1])      # Eq. 15
@@ -704,10 +733,10 @@ class AssemblyEnv:
         self.error = e
         ex_rot = max(E_ROT_FINAL * self.ex_r / E_R_FINAL, 0.01)
         ex = np.array([self.ex_r] * 3 + list(EX_ROT) + [ex_rot])
-        self.policy = ctl.HybridPolicy(self.x_i_hat, self.x_g_hat, ex, F_MAX6, MASS, TRAJ_TIME, ZETA,
-                                       1.0 / CONTROL_HZ)
-        if not self.use_base_policy:   # the 'vanilla' baseline: no trajectory, the residual acts alone
-            self.policy.x_d = lambda t, x0=self.x_i_hat: x0
+        # Eq. 6's hand-designed part: tau(t) from X^_i to X^_g (never leaving X^_i for the vanilla
+        # baseline) and K from Eq. 8-9; step() adds the residual's F_d
+        self.controller = ctl.HybridPolicy(self.x_i_hat, self.x_g_hat, ex, F_MAX6, MASS,
+                                           TRAJ_TIME if self.trajectory else np.inf, ZETA, 1.0 / CONTROL_HZ)
         w.move_to(self.x_i_hat)
         w.command(np.zeros(6))
         w.step_physics(4)
@@ -748,7 +777,7 @@ class AssemblyEnv:
         f_d = self.action_to_fd(action)
         f_sum = np.zeros(6)
         for _ in range(CONTROL_PER_POLICY):            # the 120 Hz controller, Eq. 5-6
-            self.f_tick = w.tick(self.policy, self.t, self.f_tick, f_d)
+            self.f_tick = w.tick(self.controller, self.t, self.f_tick, f_d)
             f_sum += self.f_tick
             self.t += 1.0 / CONTROL_HZ
         # The wrench the policy sees is the mean over the 0.2 s step: rigid contact makes the
@@ -757,14 +786,32 @@ class AssemblyEnv:
         self.steps += 1
         x = w.tool_pose()
         success = is_success(x, self.x_g)
-        r = reward(x, self.x_g, self.policy.w, to_world(x[1], self.f_tool), success)
+        r = reward(x, self.x_g, self.controller.w, to_world(x[1], self.f_tool), success)
         self.pose_hist = np.vstack([self.pose_hist[1:], self._rel_pose(x)[None]])
         self.wrench_hist = np.vstack([self.wrench_hist[1:], self.f_tool.astype(np.float32)[None]])
         truncated = not success and self.steps >= MAX_STEPS
         return self._obs(), float(r), success, truncated, self._info(x, success)
 
+    def __enter__(self):          # `with AssemblyEnv(...) as env:` closes it (gymnasium.Env does the same)
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def render(self):
+        """The external camera's RGB view (360, 480, 3) uint8, for render_mode 'rgb_array'; else None."""
+        return self.world.render_external() if self.render_mode == "rgb_array" else None
+
     def close(self):
-        self.world.close()
+        if self.world is not None:           # closing twice is allowed (gymnasium's contract)
+            self.world.close()
+            self.world = None
+
+
+if gymnasium is not None:     # gymnasium.make("tacrl/PegInsertion-v0"): the paper's task, errors up to 20 mm
+    for _name, _task in (("PegInsertion-v0", "peg"), ("GearInsertion-v0", "gear")):
+        gymnasium.register(f"tacrl/{_name}", entry_point=AssemblyEnv, max_episode_steps=MAX_STEPS,
+                           kwargs={"task": _task, "e_r": E_R_FINAL})
 
 
 def run_episode(env, act, seed=None, options=None, on_step=None):

@@ -3,9 +3,9 @@
     python bench/bench_sac.py [--updates 60] [--repeats 3] [--batch 64]
 
 1. Updates/s of policy.SAC at the given batch on random data of the env's shapes, for each
-   observation variant, and for the TA-MRP with the encoder shared between actor and critics
-   (the default), with an encoder of the actor's own, and with privileged critics (--critic
-   privileged: no image encoder in the critics, the actor's own encoder).
+   observation variant with the paper's critics (--critic multimodal: the actor reads their
+   encoder), and for the TA-MRP with privileged critics (the default: no image encoder in the
+   critics, the actor has its own).
 2. One training episode as tacrl.py runs it by default: the policy acting in the env for 120 steps at the
    final 20 mm error range (camera on, an untrained actor), then 200 updates (the paper's count).
 Prints medians over `repeats`; the machine is shared and noisy, so compare ratios.
@@ -57,15 +57,15 @@ def main():
     rng = np.random.default_rng(0)
     buf = filled_buffer(rng)
     print(f"torch {torch.__version__}, {torch.get_num_threads()} threads, batch {a.batch}")
-    for obs, critic in (("ts-ptv", "shared"), ("ts-ptv", "separate"), ("ts-ptv", "privileged"), ("ts-pt", "shared"),
-                        ("pt", "shared")):
-        r = [updates_per_s(policy.SAC(obs, tacrl.POSE_SCALE, sim.F_MAX6, shared_encoder=critic == "shared",
+    for obs, critic in (("ts-ptv", "privileged"), ("ts-ptv", "multimodal"), ("ts-pt", "multimodal"),
+                        ("pt", "multimodal")):
+        r = [updates_per_s(policy.SAC(obs, tacrl.POSE_SCALE, sim.F_MAX6,
                                       state_dim=tacrl.STATE_DIM if critic == "privileged" else 0),
                            buf, rng, a.batch, a.updates) for _ in range(a.repeats)]
-        print(f"{obs:6s} critics' encoder {critic:10s}: median {np.median(r):5.1f} updates/s "
+        print(f"{obs:6s} critics {critic:10s}: median {np.median(r):5.1f} updates/s "
               f"(min {min(r):.1f}, max {max(r):.1f})")
     env = sim.AssemblyEnv("peg", e_r=sim.E_R_FINAL)
-    sac = tacrl.make_sac(tacrl.Args(), "cpu")          # the default training configuration
+    sac = tacrl.make_sac(tacrl.Config(), "cpu")        # the default training configuration
     t_env, t_upd = [], []
     for k in range(a.repeats):
         obs, _ = env.reset(seed=k)

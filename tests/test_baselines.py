@@ -1,7 +1,10 @@
-"""The two-step baseline's parts (hole detection, calibration and visual servo) and the command
-lines of --seeds."""
+"""The two-step baseline's parts (hole detection, calibration and visual servo), and the command lines
+of seeds.py."""
 import numpy as np
+import pytest
 
+import baselines
+import seeds
 import sim
 import tacrl
 
@@ -9,18 +12,18 @@ import tacrl
 def test_hole_blob_finds_the_hole_and_nothing_in_a_blank_image():
     env = sim.AssemblyEnv("peg", e_r=0.02)
     obs, _ = env.reset(options={"error": np.zeros(4)})
-    u, v, r = tacrl.hole_blob(obs["image"])
+    u, v, r = baselines.hole_blob(obs["image"])
     obs2, _ = env.reset(options={"error": np.array([0.005, 0, 0, 0])})
-    u2, v2, _ = tacrl.hole_blob(obs2["image"])
+    u2, v2, _ = baselines.hole_blob(obs2["image"])
     env.close()
     assert abs(u - 40) < 3 and 4 < r < 20           # centred left-right, a hole-sized disc
     assert abs(v2 - v) > 3                           # 5 mm of error moves it several pixels
-    assert tacrl.hole_blob(np.full((80, 80), 200, np.uint8)) is None
+    assert baselines.hole_blob(np.full((80, 80), 200, np.uint8)) is None
 
 
 def test_two_step_servo_removes_most_of_a_10_mm_error():
     env = sim.AssemblyEnv("peg", e_r=0.02)
-    ts = tacrl.TwoStep(env)
+    ts = baselines.TwoStep(env)
     assert ts.calibrate(episodes=12) < 0.004         # median lateral error of the fit, m
     obs, info = env.reset(options={"error": np.array([0.010, -0.008, 0.0, 0.0])})
     ts.reset()
@@ -32,14 +35,21 @@ def test_two_step_servo_removes_most_of_a_10_mm_error():
 
 
 def test_seed_commands_one_run_dir_and_thread_share_per_seed():
-    argv = ["--task", "gear", "--seeds", "0,1,2", "--train-episodes", "5"]
-    a = tacrl.parse_args(argv)
-    parallel, jobs = tacrl.seed_commands(a, argv, cores=2)
+    argv = ["--task", "gear", "--train-episodes", "5", "--seed", "7"]
+    parallel, jobs = seeds.seed_commands([0, 1, 2], argv, cores=2)
     assert parallel == 2 and [j[0] for j in jobs] == [0, 1, 2]
     assert [j[1] for j in jobs] == [f"runs/gear-ts-ptv-adaptive-s{s}" for s in (0, 1, 2)]
     cmd = jobs[1][2]
-    assert "--seeds" not in cmd and cmd[cmd.index("--seed") + 1] == "1" and cmd[cmd.index("--threads") + 1] == "1"
+    assert cmd.count("--seed") == 1 and cmd[cmd.index("--seed") + 1] == "1" and cmd[cmd.index("--threads") + 1] == "1"
     assert cmd[cmd.index("--train-episodes") + 1] == "5" and cmd[cmd.index("--task") + 1] == "gear"
+
+
+@pytest.mark.parametrize("argv", [[], ["--task", "peg"], ["0,x"], ["1,1"], ["0,1", "--task", "screw"],
+                                  ["0,1", "--eval", "initial"]])
+def test_seeds_mistakes_are_one_line_and_exit_2(argv, capsys):
+    assert tacrl.command("seeds", lambda: seeds.main(argv)) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("seeds: error:") and err.count("\n") == 1
 
 
 def test_ablation_runs_get_run_dirs_of_their_own():

@@ -1,6 +1,8 @@
 """policy.py without pybullet: shapes of the TA-MRP networks, the squashed Gaussian's log-density,
-the TD target's time-out handling, the replay buffer, checkpoints, and SAC solving a toy task."""
+the TD target's time-out handling, the replay buffer and its files, checkpoints, what the actor may
+read, and SAC solving a toy task."""
 import io
+import os
 
 import numpy as np
 import pytest
@@ -18,12 +20,16 @@ def fake_obs(rng, n=None, kinds=("image", "pose_hist", "wrench_hist")):
 
 
 @pytest.mark.parametrize("kind,dim", [("ts-ptv", 18), ("ts-pt", 12), ("pt", 12), ("v", 6)])
-def test_encoder_fusion_sizes(kind, dim):
+def test_encoder_fusion_sizes_and_modalities(kind, dim):
     enc = policy.Encoder(kind)
     o = {k: torch.as_tensor(v) for k, v in fake_obs(np.random.default_rng(0), 5).items()}
     z = enc(o)
     assert z.shape == (5, dim) and enc.out_dim == dim
-    assert torch.all(z.abs() <= 1)
+    # each modality the variant names reaches the fused vector, and no other does
+    for key, used in (("image", kind in ("ts-ptv", "v")), ("pose_hist", kind != "v"), ("wrench_hist", kind != "v")):
+        o2 = dict(o)
+        o2[key] = torch.flip(o[key], [0])          # other samples' data in this modality
+        assert (not torch.allclose(enc(o2), z)) == used, key
 
 
 def test_squashed_gaussian_log_density():
@@ -58,25 +64,39 @@ def test_replay_keeps_uint8_images_and_pairs_o_with_o_next():
         buf.add_episode({"obs": obs, "act": rng.uniform(-1, 1, (20, 6)), "rew": np.arange(20.0),
                          "term": np.r_[np.zeros(19), 1.0]})
     assert len(buf) == 50                                           # 60 added, ring of 50
-    o, a, r, o2, term, aux = buf.sample(200, rng)
-    assert aux.shape == (200, 0)                                    # aux_dim 0 keeps none
+    o, a, r, o2, term = buf.sample(200, rng)
     np.testing.assert_array_equal(o2["pose_hist"][:, 0, 0], o["pose_hist"][:, 0, 0] + 1)
     assert set(term[r == 19]) == {1.0} and set(term[r != 19]) == {0.0}
+
+
+def test_replay_files_restore_the_buffer_and_keep_only_what_it_holds(tmp_path):
+    rng = np.random.default_rng(4)
+    shapes = {"image": (80, 80), "pose_hist": (32, 6), "wrench_hist": (32, 6)}
+    buf = policy.ReplayBuffer(25, shapes, directory=str(tmp_path))
+    for n in range(1, 5):                                           # four episodes of 10: the ring holds 25
+        buf.add_episode({"obs": fake_obs(rng, 11), "act": rng.uniform(-1, 1, (10, 6)), "rew": rng.normal(size=10),
+                         "term": np.zeros(10)}, number=n)
+    # episode 1 is overwritten in the ring; 2 is partly, so its file stays
+    assert sorted(os.listdir(tmp_path)) == ["ep_000002.npz", "ep_000003.npz", "ep_000004.npz"]
+    again = policy.ReplayBuffer(25, shapes, directory=str(tmp_path))
+    again.restore(upto=3)                                           # episode 4 was cut short: not in the checkpoint
+    assert sorted(os.listdir(tmp_path)) == ["ep_000002.npz", "ep_000003.npz"] and len(again) == 20
+    np.testing.assert_array_equal(again.act[10:20], buf.act[(np.arange(20, 30)) % 25])   # episode 3, in order
 
 
 def test_checkpoint_round_trip_reproduces_actions():
     rng = np.random.default_rng(2)
     torch.manual_seed(0)
-    sac = policy.SAC("ts-ptv", aux_dim=4)
-    buf = policy.ReplayBuffer(100, {"image": (80, 80), "pose_hist": (32, 6), "wrench_hist": (32, 6)}, aux_dim=4)
+    sac = policy.SAC("ts-ptv")
+    buf = policy.ReplayBuffer(100, {"image": (80, 80), "pose_hist": (32, 6), "wrench_hist": (32, 6)})
     buf.add_episode({"obs": fake_obs(rng, 11), "act": rng.uniform(-1, 1, (10, 6)), "rew": rng.normal(size=10),
-                     "term": np.zeros(10), "aux": rng.normal(size=(11, 4))})
+                     "term": np.zeros(10)})
     for _ in range(3):
         sac.update(buf.sample(8, rng))
     f = io.BytesIO()                                # through bytes, as ckpt.pt goes
     torch.save(sac.state_dict(), f)
     f.seek(0)
-    sac2 = policy.SAC("ts-ptv", aux_dim=4)
+    sac2 = policy.SAC("ts-ptv")
     sac2.load_state_dict(torch.load(f, weights_only=True))
     o = fake_obs(rng)
     np.testing.assert_array_equal(sac.act(o, deterministic=True), sac2.act(o, deterministic=True))
@@ -139,38 +159,16 @@ def test_sac_solves_point_reaching(privileged):
     assert after < 0.05, (before, after)
 
 
-def test_aux_loss_teaches_the_cnn_where_a_feature_is():
-    """The aux regression reaches the image: a bright 12 x 12 square at a random column, the target
-    its column. After 100 updates on that loss (rewards all zero) the CNN must place it far better
-    than the untrained net does (the loss falls below a quarter of its first value)."""
+def test_the_actor_never_reads_what_only_the_critics_may():
+    """Privileged critics read obs['state'] (X - X_g in tacrl); the deployed actor must not: its action
+    is the same whatever the state holds, and the critics' value is not."""
     torch.manual_seed(0)
-    rng = np.random.default_rng(0)
-    n = 201
-    obs = fake_obs(rng, n)
-    obs["image"][:] = 0
-    col = rng.integers(0, 68, n)
-    for i, c in enumerate(col):
-        obs["image"][i, 34:46, c:c + 12] = 255
-    target = np.stack([(col - 34) / 34.0] * 2, 1).astype(np.float32)
-    buf = policy.ReplayBuffer(n, {k: v.shape[1:] for k, v in obs.items()}, aux_dim=2)
-    buf.add_episode({"obs": obs, "act": np.zeros((n - 1, 6)), "rew": np.zeros(n - 1), "term": np.zeros(n - 1),
-                     "aux": target})
-    sac = policy.SAC("ts-ptv", lr=1e-3, aux_dim=2, aux_weight=1.0)
-    losses = [sac.update(buf.sample(16, rng))["aux_loss"] for _ in range(100)]
-    assert np.mean(losses[-20:]) < 0.25 * np.mean(losses[:5]), (losses[:5], losses[-20:])
-
-
-def test_residual_prior_pulls_the_mean_action_to_zero():
-    """With nothing to gain (zero rewards), --prior-weight drives the actor's mean to F_d = 0."""
-    torch.manual_seed(0)
-    rng = np.random.default_rng(0)
-    obs = fake_obs(rng, 101, kinds=("pose_hist", "wrench_hist"))
-    buf = policy.ReplayBuffer(100, {k: v.shape[1:] for k, v in obs.items()})
-    buf.add_episode({"obs": obs, "act": rng.uniform(-1, 1, (100, 6)), "rew": np.zeros(100), "term": np.zeros(100)})
-    sac = policy.SAC("pt", lr=1e-3, prior_weight=5.0)
-    with torch.no_grad():
-        sac.actor.net[-1].bias[:6] = 1.0                  # start far from zero: mean tanh(1) = 0.76
-    for _ in range(150):
-        sac.update(buf.sample(32, rng))
-    o = {k: v[0] for k, v in obs.items()}
-    assert np.abs(sac.act(o, deterministic=True)).max() < 0.1
+    rng = np.random.default_rng(3)
+    sac = policy.SAC("ts-ptv", state_dim=3)
+    assert sac.actor_enc is not sac.enc
+    o = {**fake_obs(rng), "state": np.zeros(3, np.float32)}
+    o2 = {**o, "state": np.array([5.0, -5.0, 1.0], np.float32)}
+    np.testing.assert_array_equal(sac.act(o, deterministic=True), sac.act(o2, deterministic=True))
+    batch = lambda x: {k: torch.as_tensor(v[None]) for k, v in x.items()}   # noqa: E731
+    a = torch.zeros(1, 6)
+    assert not torch.allclose(sac.q(sac.enc(batch(o)), a)[0], sac.q(sac.enc(batch(o2)), a)[0])

@@ -192,16 +192,23 @@ def test_roi_presets(roi):
     env.close()
 
 
-@pytest.mark.parametrize("ctx", ["loc-2", "bg-objects", "bg-colour"])
-def test_contexts_change_the_scene(ctx):
-    base = sim.AssemblyEnv("peg")
-    other = sim.AssemblyEnv("peg", context=ctx)
-    o1, _ = base.reset(seed=0, options={"error": np.zeros(4)})
-    o2, i2 = other.reset(seed=0, options={"error": np.zeros(4)})
-    np.testing.assert_allclose(o1["pose_hist"], o2["pose_hist"], atol=1e-5)   # task-relative pose
-    assert np.abs(o1["image"].astype(int) - o2["image"].astype(int)).mean() > 0.5 or ctx == "bg-objects"
-    base.close()
-    other.close()
+def first_obs(ctx, roi="task"):
+    with sim.AssemblyEnv("peg", context=ctx, roi=roi) as env:
+        obs, _ = env.reset(seed=0, options={"error": np.zeros(4)})
+        return obs, env.world.render_external()
+
+
+@pytest.mark.parametrize("ctx", ["loc-1", "loc-2", "loc-3", "bg-objects", "bg-colour"])
+def test_contexts_change_the_scene_not_the_task_relative_pose(ctx):
+    (o1, view1), (o2, view2) = first_obs("train"), first_obs(ctx)
+    np.testing.assert_allclose(o1["pose_hist"], o2["pose_hist"], atol=1e-5)   # relative to X^_g
+    assert np.abs(view1.astype(int) - view2.astype(int)).mean() > 3            # the external camera sees the change
+
+
+def test_background_objects_stand_outside_the_task_roi_but_in_the_full_view():
+    diff = lambda a, b: np.abs(a["image"].astype(int) - b["image"].astype(int)).mean()   # noqa: E731
+    assert diff(first_obs("train")[0], first_obs("bg-objects")[0]) == 0.0
+    assert diff(first_obs("train", "full")[0], first_obs("bg-objects", "full")[0]) > 0.5
 
 
 def test_peg_board_image_shows_only_the_hole_dark():

@@ -1,0 +1,390 @@
+"""report.py: the paper's experiments, re-made from run directories (Sec. 5.1.2-5.1.5): Table 1
+(ours against the two-step, vanilla and visual baselines), Table 2 (the training context and unseen
+ones), the observation, curriculum and ROI ablations (Figs. 9-11), context generalization (Fig. 12)
+and one episode's behaviour (Fig. 16), written to docs/RESULTS.md with its figures. A run directory
+lives on the machine that trained it (its checkpoint and replay are hundreds of MB); --archive
+copies what the report reads (under 1 MB a run) to results/, which the repository keeps, so the
+report can be regenerated from a fresh clone:
+
+    python report.py --archive "runs/*"       # finished runs -> results/<run name>/
+    python report.py "results/*"              # -> docs/RESULTS.md, docs/fig-*.png
+
+It evaluates what it needs and has not got yet (the two-step baseline, the unseen contexts) and
+caches those rows beside the runs. docs/results-notes.md, the hand-written reading of the numbers,
+is appended.
+"""
+import csv
+import glob
+import json
+import os
+import shutil
+import sys
+
+import numpy as np
+import torch
+
+import baselines
+import figures
+import sim
+import tacrl
+from tacrl import ArgError
+
+
+# The paper's numbers, next to which ours stand. Table 1: simulated peg, 20 trials after 200 episodes.
+VISUAL_PAPER_CRITICS = "visual (critic multimodal)"     # our visual row's critics are privileged (README)
+PAPER_TABLE1 = {"two-step": "0.533, 19.00 +- 5.75, 13.21 / 13.22 / 9.78",
+                "vanilla": "did not learn", "visual": "did not learn", VISUAL_PAPER_CRITICS: "did not learn",
+                "ours": "1.00, 2.41 +- 1.93, 12.14 / 6.92 / 3.23"}
+# Table 2 (real robot), success rate at 5/10/15/20 mm: the rows that the paper's layout pins down
+PAPER_TABLE2 = {("peg", "train"): "1.00 / 1.00 / 1.00 / 0.80", ("peg", "loc-1"): "1.00 / 1.00 / 0.90 / 0.75",
+                ("gear", "train"): "1.00 / 1.00 / 0.95 / 0.70"}
+UNSEEN = ("loc-1", "bg-objects")           # our stand-ins for the paper's 'unseen 1' (location), 'unseen 2' (background)
+LEVELS = (5.0, 10.0, 15.0, 20.0)
+
+
+def read_json(path):
+    with open(path) as f:
+        return json.load(f)
+
+
+def load_run(d):
+    """A run dir as {'dir', 'cfg' (config dict), 'm' ({metrics column: array}), 'eval' (eval.json or None)}."""
+    cfg = tacrl.read_config(d)
+    with open(os.path.join(d, "metrics.csv")) as f:
+        rows = list(csv.DictReader(f))
+    ev = read_json(os.path.join(d, "eval.json")) if os.path.exists(os.path.join(d, "eval.json")) else None
+    m = {k: np.array([float(r[k]) for r in rows]) for k in ("episode", "return", "success", "sr15", "e_r_mm",
+                                                             "ex_r_mm", "elapsed_s")}
+    return {"dir": d, "cfg": cfg, "m": m, "eval": ev}
+
+
+def method_of(cfg):
+    """'ours', 'vanilla', 'visual' or the ablation variant a run trained, plus any learning setting
+    that differs from the defaults (so that runs are grouped only with their like)."""
+    if cfg.get("vanilla"):
+        name = "vanilla"
+    elif cfg["obs"] == "v":
+        name = "visual"
+    elif (cfg["obs"], cfg["curriculum"], cfg["roi"], cfg["error_mm"]) == ("ts-ptv", "adaptive", "task", 20.0):
+        name = "ours"
+    else:
+        name = f"{cfg['obs']}, {cfg['curriculum']} to {cfg['error_mm']:g} mm, roi {cfg['roi']}"
+    default = tacrl.Config()
+    changed = [f"{k} {cfg[k]}" for k in ("critic", "updates", "warmup", "batch", "lr", "gamma", "target_entropy")
+               if k in cfg and cfg[k] != getattr(default, k)]
+    return name + (f" ({', '.join(changed)})" if changed else "")
+
+
+def command_of(cfg):
+    """The training command that reproduces a run: the flags whose values differ from the defaults."""
+    default, flags = tacrl.Config(), ["python tacrl.py"]
+    for k, v in cfg.items():
+        if k in ("run_dir", "threads", "device", "resume") or not hasattr(default, k):
+            continue
+        if v != getattr(default, k) or k == "task":
+            flags.append(f"--{k.replace('_', '-')}" + ("" if v is True else f" {v:g}" if isinstance(v, float) else f" {v}"))
+    return " ".join(flags)
+
+
+OBS_NAMES = {"pt": "P-T", "ts-pt": "Time-series P-T", "ts-ptv": "Time-series P-T-V"}
+
+
+def families(cfg):
+    """The paper's comparisons a run takes part in: {figure family: curve label}. Only runs with
+    the default learning settings (method_of without a suffix) are compared."""
+    name = method_of(cfg)
+    if name == VISUAL_PAPER_CRITICS:    # the paper's own visual baseline: its critics see what the actor sees
+        return {"methods": name}
+    if "(" in name:
+        return {}
+    ours_but = lambda **kw: all(cfg[k] == v for k, v in {"obs": "ts-ptv", "curriculum": "adaptive", "roi": "task",
+                                                         "error_mm": 20.0, "vanilla": False, **kw}.items())
+    fam = {}
+    if name in ("ours", "vanilla", "visual"):
+        fam["methods"] = name
+    if cfg["curriculum"] == "ex10" and cfg["roi"] == "task" and not cfg.get("vanilla"):
+        fam["obs"] = OBS_NAMES.get(cfg["obs"], cfg["obs"])
+    if ours_but(curriculum=cfg["curriculum"], error_mm=cfg["error_mm"]) and cfg["curriculum"] != "ex10" and (
+            cfg["curriculum"] in ("none", "adaptive") or cfg["error_mm"] == 30.0):   # ours: adaptive at 20 mm
+        fam["curriculum"] = ("no curriculum" if cfg["curriculum"] == "none" else f"curriculum {cfg['curriculum']}") \
+            + f", {cfg['error_mm']:g} mm"
+    if ours_but(roi=cfg["roi"]):
+        fam["roi"] = "task attention (Eq. 11)" if cfg["roi"] == "task" else f"ROI {cfg['roi']}"
+    return fam
+
+
+FAMILIES = {   # family: (title, curves, the paper's figure)
+    "methods": ("ours against the learned baselines", ("return", "sr15", "e_r_mm"), "Table 1"),
+    "obs": ("observation ablation: Ex_r held at 10 mm, E_r adaptive", ("sr15", "e_r_mm"), "Fig. 9"),
+    "curriculum": ("curriculum ablation", ("return", "sr15", "e_r_mm", "ex_r_mm"), "Fig. 10"),
+    "roi": ("ROI ablation", ("return", "sr15", "e_r_mm"), "Fig. 11"),
+}
+
+
+def eval_cached(run, context, levels=LEVELS, episodes=20, log=print):
+    """Table-2 rows of a run's policy in `context`, evaluated once and kept in the run dir (the
+    training context's come from eval.json when it holds the same levels)."""
+    cfg = run["cfg"]
+    act = tacrl.load_policy(os.path.join(run["dir"], "policy.pt"), cfg["task"])
+    plan = [(mm, round(sim.exploration_range(mm / 1000, act.meta["ex_r"]) * 1000, 3)) for mm in levels]   # (E_r, Ex_r), mm
+    tag = "" if tuple(levels) == LEVELS else "-" + "-".join(f"{mm:g}" for mm in levels) + "mm"
+    path = os.path.join(run["dir"], f"eval-{context}{tag}.json")
+    for rows in ([run["eval"]["rows"]] if context == "train" and run["eval"] else []) + \
+            ([read_json(path)] if os.path.exists(path) else []):     # eval.json, then this cache
+        if [(r["error_mm"], r.get("ex_r_mm")) for r in rows] == plan and rows[0]["episodes"] == episodes:
+            return rows
+    log(f"  evaluating {run['dir']} in {context} at {', '.join(f'{mm:g}' for mm in levels)} mm")
+    with tacrl.eval_env(cfg["task"], act, context, cfg["roi"], cfg["clearance_mm"]) as env:
+        rows = tacrl.evaluate_levels(env, act, levels, episodes, tacrl.EVAL_SEED + cfg["seed"])
+    with open(path, "w") as f:
+        json.dump(rows, f, indent=2)
+    return rows
+
+
+def cell(row, k, f="{:.2f}"):
+    v = row.get(k)
+    return "-" if v is None else f"{f.format(v[0])} +- {f.format(v[1])}"
+
+
+def record_episode(run, error_mm=10.0, seed=0):
+    """One evaluation episode of a run's policy, recorded per step for Fig. 16 (figures.plot_behaviour):
+    the image features, X - X_g, the wrench, the action and the phase (0 free motion, 1 search after
+    contact, 2 insertion). Returns (record, success)."""
+    cfg = run["cfg"]
+    act = tacrl.load_policy(os.path.join(run["dir"], "policy.pt"), cfg["task"])
+    rec = {k: [] for k in ("image_features", "goal_offset", "f_world", "action", "phase")}
+
+    def policy_step(obs):                       # the policy, recording its image features and actions
+        with torch.no_grad():
+            img = torch.as_tensor(obs["image"][None])
+            rec["image_features"].append(act.encoder.image(img)[0].numpy() if act.encoder.image is not None
+                                         else np.zeros(6))
+        rec["action"].append(act(obs))
+        return rec["action"][-1]
+
+    def on_step(obs, r, info):
+        rec["goal_offset"].append(info["goal_offset"])
+        rec["f_world"].append(info["f_world"])
+        rec["phase"].append(2 if info["depth"] > 0.001 else 1 if np.abs(info["f_world"][:3]).max() > 0.5 else 0)
+    with tacrl.eval_env(cfg["task"], act, roi=cfg["roi"], e_r_mm=error_mm) as env:
+        term, _, _ = sim.run_episode(env, policy_step, seed=tacrl.EVAL_SEED * 7 + seed, on_step=on_step)
+    rec["phase"] = np.maximum.accumulate(rec["phase"])        # free -> search after contact -> insertion
+    return rec, bool(term)
+
+
+def match_runs(patterns):
+    """The run directories (config.json + metrics.csv) that comma-separated glob patterns match."""
+    dirs = sorted({d for p in patterns.split(",") for d in glob.glob(p.strip())
+                   if os.path.exists(os.path.join(d, "config.json")) and os.path.exists(os.path.join(d, "metrics.csv"))})
+    if not dirs:
+        raise ArgError(f"{patterns!r}: no run directory (config.json + metrics.csv) matches")
+    return dirs
+
+
+RESULTS_DIR = "results"       # the archived runs the report is built from; the repository keeps them
+ARCHIVED = ("config.json", "metrics.csv", "policy.pt", "curves.png", "train.log")    # and eval*.json
+
+
+def archive_runs(patterns, dest=RESULTS_DIR, log=print):
+    """Copy what the report reads of each finished run (eval.json written) to dest/<run name>/: under
+    1 MB a run (policy.pt), where the checkpoint and the replay buffer that stay behind are hundreds of MB.
+    A run dir lives on one machine; the archive travels with the repository, so the report can be
+    regenerated from a fresh clone. Returns the archived directories."""
+    done = []
+    for d in match_runs(patterns):
+        if not os.path.exists(os.path.join(d, "eval.json")):
+            log(f"  {d}: not finished (no eval.json), not archived")
+            continue
+        to = os.path.join(dest, os.path.basename(os.path.normpath(d)))
+        os.makedirs(to, exist_ok=True)
+        names = [f for f in os.listdir(d) if f in ARCHIVED or (f.startswith("eval") and f.endswith(".json"))]
+        for f in names:
+            shutil.copy2(os.path.join(d, f), os.path.join(to, f))
+        log(f"  {d} -> {to} ({', '.join(sorted(names))})")
+        done.append(to)
+    if not done:
+        raise ArgError(f"{patterns!r}: no finished run (with eval.json) to archive")
+    return done
+
+
+def write_report(patterns, out_dir="docs", log=print):
+    """docs/RESULTS.md and its figures from run directories (glob patterns, comma-separated)."""
+    runs = [load_run(d) for d in match_runs(patterns)]
+    os.makedirs(out_dir, exist_ok=True)
+    for f in os.listdir(out_dir):          # an earlier report's figures, which these runs may not redraw
+        if f.startswith("fig-") and f.endswith(".png"):
+            os.remove(os.path.join(out_dir, f))
+    md = ["# Results", "", f"Regenerated by `python report.py \"{patterns}\"` from {len(runs)} run "
+          "directories. Every number below was measured by running this code on a 2-core CPU machine; "
+          "the paper's numbers stand beside ours. How the world and the method came to be as they are, "
+          "and what each change did to the results, is told in [HISTORY.md](HISTORY.md).", "", "## The runs", "",
+          "| run | command | method | episodes | minutes (threads) | final E_r (mm) | max E_r (mm) | eval SR 5/10/15/20 mm |",
+          "|---|---|---|---|---|---|---|---|"]
+    for r in runs:
+        ev = r["eval"]
+        srs = " / ".join(f"{row['success_rate']:.2f}" for row in ev["rows"]) if ev else "not finished"
+        if ev and tuple(row["error_mm"] for row in ev["rows"]) != LEVELS:   # e.g. a 30 mm run's 10/20/30
+            srs += " (at " + "/".join(f"{row['error_mm']:g}" for row in ev["rows"]) + " mm)"
+        md.append(f"| `{r['dir']}` | `{command_of(r['cfg'])}` | {method_of(r['cfg'])} | "
+                  f"{len(r['m']['episode'])} | {r['m']['elapsed_s'][-1] / 60:.1f} ({r['cfg'].get('threads') or 'all'}) | "
+                  f"{r['m']['e_r_mm'][-1]:.1f} | {r['m']['e_r_mm'].max():.1f} | {srs} |")
+    # -- Table 1: peg at 20 mm
+    md += ["", "## Table 1: peg-in-hole at 20 mm error (20 trials, evaluation seeds never used in training)", "",
+           "| method | training episodes | SR | CT (s) | peak contact force x / y / z (N) | cumulative reward | "
+           "paper: SR, CT, force x/y/z |", "|---|---|---|---|---|---|---|"]
+    path = os.path.join(out_dir, "two-step-peg-20mm.json")
+    if os.path.exists(path):
+        ts_row = read_json(path)
+    else:
+        log("evaluating the two-step baseline (peg, 20 mm, 20 episodes)")
+        with sim.AssemblyEnv("peg", e_r=0.02) as env:
+            ts = baselines.TwoStep(env)
+            ts.calibrate()
+            ts_row = tacrl.evaluate(env, ts, 20, tacrl.EVAL_SEED, log=lambda *_: None)
+        with open(path, "w") as f:
+            json.dump(ts_row, f, indent=2)
+    table1 = [("two-step", [ts_row], "-")]
+    for name in ("vanilla", "visual", VISUAL_PAPER_CRITICS, "ours"):
+        done = [r for r in runs if r["cfg"]["task"] == "peg" and method_of(r["cfg"]) == name and r["eval"]]
+        rows = [row for r in done for row in r["eval"]["rows"] if row["error_mm"] == 20.0]
+        table1.append((name, rows, ", ".join(sorted({str(len(r["m"]["episode"])) for r in done}))))
+    for name, rows, episodes in table1:
+        if not rows:
+            md.append(f"| {name} | | not run | | | | {PAPER_TABLE1[name]} |")
+            continue
+        sr = np.array([x["success_rate"] for x in rows])
+        if len(rows) == 1:
+            ct = cell(rows[0], "completion_time_s")
+        else:                              # the seeds' mean completion times, averaged
+            cts = [x["completion_time_s"][0] for x in rows if x["completion_time_s"]]
+            ct = f"{np.mean(cts):.2f} (mean of seeds)" if cts else "-"
+        fx = " / ".join(f"{np.mean([x[k][0] for x in rows]):.2f}"
+                        for k in ("contact_force_x_N", "contact_force_y_N", "contact_force_z_N"))
+        cr = f"{np.mean([x['cumulative_reward'][0] for x in rows]):.1f}"
+        srs = f"{sr.mean():.2f}" + (f" +- {sr.std():.2f} ({len(rows)} seeds)" if len(rows) > 1 else "")
+        md.append(f"| {name} | {episodes} | {srs} | {ct} | {fx} | {cr} | {PAPER_TABLE1[name]} |")
+    # -- Table 2: ours in the training and unseen contexts
+    md += ["", "## Table 2: our policy in the training context and two unseen ones", "",
+           "Success rate / completion time (s) / cumulative reward at 5, 10, 15, 20 mm error, 20 trials each.", "",
+           "| task | context | 5 mm | 10 mm | 15 mm | 20 mm | paper SR (real robot) |", "|---|---|---|---|---|---|---|"]
+    for task in ("peg", "gear"):
+        ours = [r for r in runs if r["cfg"]["task"] == task and method_of(r["cfg"]) == "ours" and r["eval"]]
+        if not ours:
+            md.append(f"| {task} | - | not run | | | | |")
+            continue
+        best = ours[0]                      # the first seed stands for the method in the unseen contexts
+        for ctx in ("train",) + UNSEEN:
+            rows = eval_cached(best, ctx, log=log)
+            cells = [f"{x['success_rate']:.2f} / {cell(x, 'completion_time_s', '{:.1f}').split(' +-')[0]} / "
+                     f"{x['cumulative_reward'][0]:.1f}" for x in rows if x["error_mm"] in LEVELS]
+            md.append(f"| {task} | {ctx} | {' | '.join(cells)} | {PAPER_TABLE2.get((task, ctx), '-')} |")
+    # -- curriculum ablation (Fig. 10) in numbers: how soon each run reached its final range, how it did there
+    for task in ("peg", "gear"):
+        fam = sorted(((families(r["cfg"])["curriculum"], r) for r in runs if r["cfg"]["task"] == task
+                      and "curriculum" in families(r["cfg"]) and r["eval"]), key=lambda x: x[0])
+        if len({label for label, _ in fam}) < 2:
+            continue
+        md += ["", f"## Curriculum ablation, {task} (the paper's Fig. 10)", "",
+               "Training: the first episode whose E_r reached the run's final error range, and success and return "
+               "over the last 50 episodes. Evaluation: 20 trials at that range.", "",
+               "| curriculum | run | first episode at the final E_r | training success, last 50 | training return, "
+               "last 50 | eval SR | eval CT (s) |", "|---|---|---|---|---|---|---|"]
+        for label, r in fam:
+            m, mm = r["m"], r["cfg"]["error_mm"]
+            at = np.flatnonzero(m["e_r_mm"] >= mm - 1e-6)
+            row = next((x for x in r["eval"]["rows"] if x["error_mm"] == mm), None) \
+                or eval_cached(r, "train", levels=(mm,), log=log)[0]
+            first = int(m["episode"][at[0]]) if len(at) else "never"
+            md.append(f"| {label} | `{r['dir']}` | {first} of {len(m['episode'])} | "
+                      f"{m['success'][-50:].mean():.2f} | {m['return'][-50:].mean():.1f} | "
+                      f"{row['success_rate']:.2f} | {cell(row, 'completion_time_s').split(' +-')[0]} |")
+        md += ["", "The paper (training curves, 300 episodes): without curriculum, 10 mm reaches SR 0.9 and reward "
+               "70, 20 mm SR 0.6 and reward 20, 30 mm less; at 30 mm every curriculum beats no curriculum, g2-c10 "
+               "learns faster than g2-c30, and g2-c2 behaves like g2-c10."]
+    # -- learning curves: one figure per comparison of the paper and task
+    figs = []
+    for task in ("peg", "gear"):
+        groups = {}
+        for r in runs:
+            if r["cfg"]["task"] == task:
+                groups.setdefault(method_of(r["cfg"]), []).append(r)
+        if groups:                         # every run of the task, grouped by what it trained
+            name = f"fig-{task}-runs.png"
+            figures.plot_groups(groups, ("sr15", "e_r_mm"), os.path.join(out_dir, name), f"{task}: every run")
+            figs.append((name, f"{task}: every run, grouped by method and setting"))
+        for fam, (title, keys, paper_fig) in FAMILIES.items():
+            groups = {}
+            for r in runs:
+                label = families(r["cfg"]).get(fam)
+                if r["cfg"]["task"] == task and label:
+                    groups.setdefault(label, []).append(r)
+            if not groups or (fam != "methods" and len(groups) < 2):
+                continue
+            name = f"fig-{task}-{fam}.png"
+            figures.plot_groups(groups, keys, os.path.join(out_dir, name), f"{task}: {title}")
+            figs.append((name, f"{task}, {title} (the paper's {paper_fig}): mean over seeds, 95% bootstrap band "
+                               "where there are several"))
+    # -- context generalization (Fig. 12): task-attention ROI against the full view, mean cumulative reward
+    for task in ("peg", "gear"):
+        bars = {}
+        for roi in ("task", "full"):
+            r = next((r for r in runs if r["cfg"]["task"] == task and r["eval"]
+                      and families(r["cfg"]).get("roi") and r["cfg"]["roi"] == roi), None)
+            if r is None:
+                continue
+            bars[families(r["cfg"])["roi"]] = by_ctx = {}
+            for ctx in ("train",) + UNSEEN:
+                cr = np.array([x["cumulative_reward"][0] for x in eval_cached(r, ctx, log=log)])
+                by_ctx[ctx] = [float(cr.mean()), float(cr.std())]
+        if len(bars) == 2:
+            name = f"fig-{task}-contexts.png"
+            figures.plot_context_bars(bars, os.path.join(out_dir, name), f"{task}: training context and two unseen ones")
+            figs.append((name, f"{task}: mean cumulative reward over 5/10/15/20 mm (20 trials each) in the training "
+                               "context and two unseen ones, task-attention ROI against the full view (the paper's "
+                               "Fig. 12; bars: spread over the four error ranges)"))
+            figures.plot_views(task, ("task", "full"), ("train",) + UNSEEN, os.path.join(out_dir, f"fig-{task}-views.png"))
+            figs.append((f"fig-{task}-views.png", f"{task}: what the policy sees at the start of an episode in each "
+                                                  "context, through the task-attention ROI and the full view"))
+            md += ["", f"## Context generalization, {task} (the paper's Fig. 12)", "",
+                   "Mean cumulative reward per episode over 5/10/15/20 mm, 20 trials each.", "",
+                   "| ROI | " + " | ".join(("train",) + UNSEEN) + " |", "|---" * (1 + len(UNSEEN) + 1) + "|"]
+            md += [f"| {roi} | " + " | ".join(f"{v[ctx][0]:.1f}" for ctx in v) + " |" for roi, v in bars.items()]
+            md += ["", "The paper (real robot, average cumulative reward): task attention 61.19 -> 54.73 (new "
+                   "background), 69.23 -> 46.46 (new location); full view 61.12 -> -23.06 and 59.51 -> -14.65."]
+    ours_peg = [r for r in runs if r["cfg"]["task"] == "peg" and method_of(r["cfg"]) == "ours" and r["eval"]]
+    if ours_peg:
+        rec, term = record_episode(ours_peg[0], error_mm=10.0)
+        figures.plot_behaviour(rec, os.path.join(out_dir, "fig-behaviour.png"),
+                               f"one episode, peg, 10 mm error range, success {term}")
+        figs.append(("fig-behaviour.png", "one episode of our peg policy at 10 mm error (the paper's Fig. 16)"))
+    md += ["", "## Figures", ""]
+    for name, caption in figs:
+        md += [f"![{caption}]({name})", "", f"*{caption}*", ""]
+    notes = os.path.join(out_dir, "results-notes.md")     # the hand-written reading of these numbers
+    if os.path.exists(notes):
+        with open(notes) as f:
+            md += ["", f.read().strip()]
+    with open(os.path.join(out_dir, "RESULTS.md"), "w") as f:
+        f.write("\n".join(md) + "\n")
+    log(f"wrote {out_dir}/RESULTS.md and {len(figs)} figures")
+    return 0
+
+
+# ---------------------------------------------------------------- several seeds
+
+
+def main(argv=None):
+    ap = tacrl.Parser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("runs", help="comma-separated glob patterns of run directories, e.g. 'results/*'")
+    ap.add_argument("--archive", action="store_true", help="copy the finished runs' small files to --to instead")
+    ap.add_argument("--to", default=RESULTS_DIR, help=f"where --archive copies to (default: {RESULTS_DIR})")
+    ap.add_argument("--out", default="docs", help="where the report is written (default: docs)")
+    a = ap.parse_args(argv)
+    if a.archive:
+        archive_runs(a.runs, a.to)
+    else:
+        write_report(a.runs, a.out)
+
+
+if __name__ == "__main__":
+    sys.exit(tacrl.command("report", main))

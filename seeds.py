@@ -1,0 +1,98 @@
+"""seeds.py: several independent training runs of tacrl.py, one a seed, in parallel processes. The
+paper's learning curves are means over three repeated experiments (Sec. 5.1.5), and a learning claim
+here needs its seeds too:
+
+    python seeds.py 0,1,2 --task peg                 # runs/peg-ts-ptv-adaptive-s0, -s1, -s2
+    python seeds.py 0,1 --task peg --curriculum none --error-mm 10
+
+The flags after the seeds are tacrl.py's. At most one process a core runs at a time, each with torch
+on cores / processes threads: two torch processes with the default threads on the same two cores
+slowed one update phase from 6 s to 231 s. Each run is an ordinary run directory with its own
+train.log, resumable on its own with `python tacrl.py --resume DIR`.
+"""
+import os
+import re
+import subprocess
+import sys
+import time
+
+import tacrl
+from tacrl import ArgError
+
+
+def strip_flag(argv, flag):
+    """argv without `flag VALUE` / `flag=VALUE`."""
+    out, skip = [], False
+    for x in argv:
+        if skip:
+            skip = False
+        elif x == flag:
+            skip = True
+        elif not x.startswith(flag + "="):
+            out.append(x)
+    return out
+
+
+def seed_commands(seeds, argv, cores=None):
+    """How many processes at once, and (seed, run dir, command line) for each seed; argv: tacrl.py's flags."""
+    cfg = tacrl.parse_args(argv)                  # a mistake in the flags is found before anything starts
+    if cfg.eval or cfg.resume:
+        raise ArgError("seeds.py trains; --eval and --resume are for one run (tacrl.py)")
+    cores = cores or os.cpu_count() or 1
+    parallel = min(len(seeds), cores)
+    base = argv
+    for flag in ("--seed", "--run-dir", "--threads"):
+        base = strip_flag(base, flag)
+    jobs = []
+    for s in seeds:
+        run_dir = re.sub(r"-s\d+$", "", cfg.run_dir) + f"-s{s}"
+        jobs.append((s, run_dir, [sys.executable, os.path.abspath(tacrl.__file__), *base, "--seed", str(s),
+                                  "--run-dir", run_dir, "--threads", str(cfg.threads or max(1, cores // parallel))]))
+    return parallel, jobs
+
+
+def train_seeds(seeds, argv):
+    """Start the runs, at most `parallel` at a time; a progress line a minute."""
+    parallel, jobs = seed_commands(seeds, argv)
+    todo, running, t0, shown = list(jobs), {}, time.time(), 0.0
+    while todo or running:
+        while todo and len(running) < parallel:
+            s, run_dir, cmd = todo.pop(0)
+            os.makedirs(run_dir, exist_ok=True)
+            running[s] = (subprocess.Popen(cmd, stdout=open(os.path.join(run_dir, "train.log"), "w"),
+                                           stderr=subprocess.STDOUT), run_dir)
+            print(f"seed {s}: started, {run_dir}/train.log", flush=True)
+        time.sleep(5)
+        status = []
+        for s, (proc, run_dir) in list(running.items()):
+            with open(os.path.join(run_dir, "train.log")) as f:
+                last = [ln for ln in f.read().splitlines() if ln.startswith("ep ")]
+            status.append(f"s{s} {last[-1].split()[1] if last else '-'}")
+            if proc.poll() is not None:
+                del running[s]
+                print(f"seed {s}: finished with exit code {proc.returncode} ({tacrl.fmt_time(time.time() - t0)})",
+                      flush=True)
+        if status and time.time() - shown > 60:
+            shown = time.time()
+            print(f"[{tacrl.fmt_time(time.time() - t0)}] episodes: {'  '.join(status)}", flush=True)
+
+
+def parse_seeds(text):
+    try:
+        seeds = [int(x) for x in text.split(",")]
+    except ValueError:
+        seeds = []
+    if not seeds or len(set(seeds)) != len(seeds):
+        raise ArgError(f"the first argument must be distinct comma-separated seeds, e.g. 0,1,2, not {text!r}")
+    return seeds
+
+
+def main(argv=None):
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if not argv or argv[0].startswith("-"):
+        raise ArgError("usage: python seeds.py SEEDS [tacrl.py flags], e.g. python seeds.py 0,1,2 --task peg")
+    train_seeds(parse_seeds(argv[0]), argv[1:])
+
+
+if __name__ == "__main__":
+    sys.exit(tacrl.command("seeds", main))

@@ -1,0 +1,159 @@
+"""Algorithm 1 end to end in a tiny configuration (3 episodes of at most 30 steps, 2 updates): one
+run, interrupted by Ctrl-C after its second episode and resumed, serves the tests of what a run
+leaves behind; then its policy's evaluation, the archive and the report made from it; and a seeded
+run repeats itself."""
+import csv
+import json
+import os
+import shutil
+
+import pytest
+import torch
+
+import report
+import sim
+import tacrl
+
+TINY = ["--task", "peg", "--error-mm", "1", "--train-episodes", "3", "--warmup", "1", "--updates", "2",
+        "--batch", "8", "--episodes", "1", "--eval-levels", "1", "--buffer", "40"]
+SHORT = 30           # steps an episode, not 120: the untrained policy runs every one to the limit
+
+
+@pytest.fixture(scope="module")
+def tiny_run(tmp_path_factory):
+    run_dir = str(tmp_path_factory.mktemp("train") / "run")
+    first, second = [], []
+
+    def interrupt_after_episode_2(msg):
+        first.append(msg)
+        if msg.startswith("ep    2/3"):
+            raise KeyboardInterrupt      # as Ctrl-C right after episode 2 was saved
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(sim, "MAX_STEPS", SHORT)
+        with pytest.raises(KeyboardInterrupt, match="--resume"):
+            tacrl.train(tacrl.parse_args(TINY + ["--run-dir", run_dir]), log=interrupt_after_episode_2)
+        replay_at_interrupt = sorted(os.listdir(os.path.join(run_dir, "replay")))
+        tacrl.train(tacrl.parse_args(["--resume", run_dir]), log=second.append)
+    with open(os.path.join(run_dir, "metrics.csv")) as f:
+        rows = list(csv.DictReader(f))
+    return {"dir": run_dir, "first": first, "second": second, "replay_at_interrupt": replay_at_interrupt,
+            "rows": rows, "eval": json.loads(open(os.path.join(run_dir, "eval.json")).read())}
+
+
+def test_start_up_lines_give_the_config_and_the_parameter_counts(tiny_run):
+    assert tiny_run["first"][0].startswith("config: {'task': 'peg'")
+    assert tiny_run["first"][1].startswith("parameters: actor ") and "critics " in tiny_run["first"][1]
+
+
+def test_interrupt_loses_no_finished_episode_and_resume_goes_on_from_it(tiny_run):
+    assert tiny_run["replay_at_interrupt"] == ["ep_000001.npz", "ep_000002.npz"]
+    assert any(x.startswith(f"resumed {tiny_run['dir']} at episode 2") for x in tiny_run["second"])
+    episodes = [x.split()[1] for x in tiny_run["second"] if x.startswith("ep ")]
+    assert episodes == ["3/3"]
+    assert [int(x["episode"]) for x in tiny_run["rows"]] == [1, 2, 3]
+
+
+def test_a_finished_run_leaves_every_file(tiny_run):
+    for f in ("config.json", "ckpt.pt", "metrics.csv", "policy.pt", "curves.png", "eval.json"):
+        assert os.path.getsize(os.path.join(tiny_run["dir"], f)) > 0, f
+
+
+def test_updates_start_after_the_warmup(tiny_run):
+    assert [int(x["updates"]) for x in tiny_run["rows"]] == [0, 2, 2]
+
+
+def test_the_replay_on_disk_is_what_the_ring_buffer_holds(tiny_run):
+    steps = [int(x["steps"]) for x in tiny_run["rows"]]
+    keep = next(i for i in range(3, -1, -1) if sum(steps[i:]) >= 40 or i == 0)     # newest that fill 40
+    kept = sorted(os.listdir(os.path.join(tiny_run["dir"], "replay")))
+    assert kept == [f"ep_{i + 1:06d}.npz" for i in range(keep, 3)], (steps, kept)
+
+
+def test_a_run_dir_that_holds_a_run_is_not_started_over(tiny_run, capsys):
+    assert tacrl.main(TINY + ["--run-dir", tiny_run["dir"]]) == 2
+    assert "--resume" in capsys.readouterr().err
+
+
+def test_evaluating_policy_pt_repeats_eval_json(tiny_run, tmp_path, monkeypatch):
+    # training evaluates in a new simulator, so --eval in a fresh one repeats it to the last digit
+    monkeypatch.setattr(sim, "MAX_STEPS", SHORT)          # as the run was evaluated
+    ev = tiny_run["eval"]
+    assert [row["error_mm"] for row in ev["rows"]] == [1.0] and ev["eval_seed"] != ev["seed"]
+    again = tmp_path / "again.json"
+    assert tacrl.main(["--task", "peg", "--eval", os.path.join(tiny_run["dir"], "policy.pt"), "--error-mm", "1",
+                       "--episodes", "1", "--json", str(again)]) == 0
+    keys = ("success_rate", "cumulative_reward", "contact_force_x_N", "contact_force_y_N", "contact_force_z_N")
+    assert {k: ev["rows"][0][k] for k in keys} == {k: json.loads(again.read_text())[k] for k in keys}
+
+
+def test_a_policy_is_evaluated_with_the_exploration_range_it_trained_with(tiny_run, tmp_path, capsys):
+    pol = str(tmp_path / "policy.pt")
+    d = torch.load(os.path.join(tiny_run["dir"], "policy.pt"), weights_only=True)
+    assert d["ex_r"] <= 0.002 and tiny_run["eval"]["rows"][0]["ex_r_mm"] == 2.0     # where it ended, floored at 2 mm
+    assert d["e_r_max"] == 0.02              # and the env it saw: ROI and X_i for 20 mm, the least there is
+    d["ex_r"] = 0.015                        # as if it had ended at 15 mm: evaluated at 0 mm, Ex_r stays 15
+    torch.save(d, pol)
+    out = tmp_path / "row.json"
+    assert tacrl.main(["--task", "peg", "--eval", pol, "--error-mm", "0", "--episodes", "1", "--json", str(out)]) == 0
+    assert "TA-MRP peg 0mm" in capsys.readouterr().out
+    row = json.loads(out.read_text())
+    assert row["episodes"] == 1 and row["error_mm"] == 0 and row["ex_r_mm"] == 15.0
+
+
+@pytest.mark.parametrize("args, message", [(["--task", "gear"], "trained for --task peg"),
+                                           (["--task", "peg", "--roi", "200"], "trained with --roi task, not 200")])
+def test_a_policy_is_not_evaluated_in_another_task_or_view(tiny_run, capsys, args, message):
+    assert tacrl.main(args + ["--eval", os.path.join(tiny_run["dir"], "policy.pt")]) == 2
+    assert message in capsys.readouterr().err
+
+
+def test_archive_keeps_what_the_report_reads_and_skips_unfinished_runs(tiny_run, tmp_path):
+    unfinished = tmp_path / "unfinished"
+    unfinished.mkdir()
+    for f in ("config.json", "metrics.csv"):
+        shutil.copy(os.path.join(tiny_run["dir"], f), unfinished / f)
+    lines = []
+    results = tmp_path / "results"
+    assert report.archive_runs(f"{tiny_run['dir']},{unfinished}", dest=str(results), log=lines.append) == \
+        [str(results / "run")]
+    assert sorted(os.listdir(results / "run")) == ["config.json", "curves.png", "eval.json", "metrics.csv", "policy.pt"]
+    assert any(str(unfinished) in x and "not finished" in x for x in lines)
+    assert tacrl.command("report", lambda: report.main([str(unfinished), "--archive"])) == 2
+
+
+def test_report_is_written_from_an_archive(tiny_run, tmp_path):
+    results = tmp_path / "results"
+    report.archive_runs(tiny_run["dir"], dest=str(results), log=lambda *_: None)
+    docs = tmp_path / "docs"
+    docs.mkdir()
+    row = {"success_rate": 0.5, "completion_time_s": [10.0, 1.0], "contact_force_x_N": [1.0, 0.0],
+           "contact_force_y_N": [1.0, 0.0], "contact_force_z_N": [1.0, 0.0], "cumulative_reward": [1.0, 0.0],
+           "episodes": 20}      # the two-step row's cache: evaluating the baseline takes a minute
+    (docs / "two-step-peg-20mm.json").write_text(json.dumps(row))
+    (docs / "fig-peg-obs.png").write_bytes(b"an earlier report's figure, of runs this one has not got")
+    assert tacrl.command("report", lambda: report.main([str(results / "*"), "--out", str(docs)])) == 0
+    text = (docs / "RESULTS.md").read_text()
+    assert str(results / "run") in text and "Table 1" in text and "Table 2" in text
+    assert "| two-step | - | 0.50 | 10.00 +- 1.00 |" in text
+    assert "(at 1 mm)" in text               # its levels are named: not the usual 5/10/15/20
+    assert (docs / "fig-peg-runs.png").stat().st_size > 0 and not (docs / "fig-peg-obs.png").exists()
+
+
+def test_behaviour_and_view_figures(tiny_run, tmp_path, monkeypatch):
+    monkeypatch.setattr(sim, "MAX_STEPS", SHORT)
+    rec, term = report.record_episode(report.load_run(tiny_run["dir"]), error_mm=0.0)
+    assert len(rec["action"]) == len(rec["phase"]) > 0 and list(rec["phase"]) == sorted(rec["phase"])
+    report.figures.plot_behaviour(rec, str(tmp_path / "behaviour.png"), "tiny")
+    report.figures.plot_views("peg", ("full",), ("train", "bg-objects"), str(tmp_path / "views.png"))
+    assert (tmp_path / "behaviour.png").stat().st_size > 0 and (tmp_path / "views.png").stat().st_size > 0
+
+
+def test_a_seeded_run_repeats_itself(tmp_path, monkeypatch):
+    monkeypatch.setattr(sim, "MAX_STEPS", SHORT)
+    metrics = []
+    for name in ("a", "b"):
+        tacrl.train(tacrl.parse_args(TINY + ["--seed", "3", "--run-dir", str(tmp_path / name)]), log=lambda *_: None)
+        with open(tmp_path / name / "metrics.csv") as f:
+            metrics.append([{k: v for k, v in r.items() if not k.endswith("_s")} for r in csv.DictReader(f)])
+    assert metrics[0] == metrics[1] and len(metrics[0]) == 3
+    assert any(float(r["q_loss"]) > 0 for r in metrics[0])            # updates ran, and came out the same
