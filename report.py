@@ -40,6 +40,15 @@ PAPER_TABLE2 = {("peg", "train"): "1.00 / 1.00 / 1.00 / 0.80", ("peg", "loc-1"):
                 ("gear", "train"): "1.00 / 1.00 / 0.95 / 0.70"}
 UNSEEN = ("loc-1", "bg-objects")           # our stand-ins for the paper's 'unseen 1' (location), 'unseen 2' (background)
 LEVELS = (5.0, 10.0, 15.0, 20.0)
+OBS_NAMES = {"pt": "P-T", "ts-pt": "Time-series P-T", "ts-ptv": "Time-series P-T-V"}
+FAMILIES = {   # family: (title, curves, the paper's figure)
+    "methods": ("ours against the learned baselines", ("return", "sr15", "e_r_mm"), "Table 1"),
+    "obs": ("observation ablation: Ex_r held at 10 mm, E_r adaptive", ("sr15", "e_r_mm"), "Fig. 9"),
+    "curriculum": ("curriculum ablation", ("return", "sr15", "e_r_mm", "ex_r_mm"), "Fig. 10"),
+    "roi": ("ROI ablation", ("return", "sr15", "e_r_mm"), "Fig. 11"),
+}
+RESULTS_DIR = "results"       # the archived runs the report is built from; the repository keeps them
+ARCHIVED = ("config.json", "metrics.csv", "policy.pt", "curves.png", "train.log")    # and eval*.json
 
 
 def read_json(path):
@@ -86,9 +95,6 @@ def command_of(cfg):
     return " ".join(flags)
 
 
-OBS_NAMES = {"pt": "P-T", "ts-pt": "Time-series P-T", "ts-ptv": "Time-series P-T-V"}
-
-
 def families(cfg):
     """The paper's comparisons a run takes part in: {figure family: curve label}. Only runs with
     the default learning settings (method_of without a suffix) are compared."""
@@ -97,7 +103,7 @@ def families(cfg):
         return {"methods": name}
     if "(" in name:
         return {}
-    ours_but = lambda **kw: all(cfg[k] == v for k, v in {"obs": "ts-ptv", "curriculum": "adaptive", "roi": "task",
+    ours_but = lambda **kw: all(cfg[k] == v for k, v in {"obs": "ts-ptv", "curriculum": "adaptive", "roi": "task",  # noqa: E731
                                                          "error_mm": 20.0, "vanilla": False, **kw}.items())
     fam = {}
     if name in ("ours", "vanilla", "visual"):
@@ -111,14 +117,6 @@ def families(cfg):
     if ours_but(roi=cfg["roi"]):
         fam["roi"] = "task attention (Eq. 11)" if cfg["roi"] == "task" else f"ROI {cfg['roi']}"
     return fam
-
-
-FAMILIES = {   # family: (title, curves, the paper's figure)
-    "methods": ("ours against the learned baselines", ("return", "sr15", "e_r_mm"), "Table 1"),
-    "obs": ("observation ablation: Ex_r held at 10 mm, E_r adaptive", ("sr15", "e_r_mm"), "Fig. 9"),
-    "curriculum": ("curriculum ablation", ("return", "sr15", "e_r_mm", "ex_r_mm"), "Fig. 10"),
-    "roi": ("ROI ablation", ("return", "sr15", "e_r_mm"), "Fig. 11"),
-}
 
 
 def eval_cached(run, context, levels=LEVELS, episodes=20, log=print):
@@ -179,10 +177,6 @@ def match_runs(patterns):
     if not dirs:
         raise ArgError(f"{patterns!r}: no run directory (config.json + metrics.csv) matches")
     return dirs
-
-
-RESULTS_DIR = "results"       # the archived runs the report is built from; the repository keeps them
-ARCHIVED = ("config.json", "metrics.csv", "policy.pt", "curves.png", "train.log")    # and eval*.json
 
 
 def archive_runs(patterns, dest=RESULTS_DIR, log=print):
