@@ -26,7 +26,7 @@ def run(*args):
                                   ["--eval", "two-step", "--task", "gear"], ["--critic", "oracle"],
                                   ["--lr", "0"], ["--gamma", "1"], ["--clearance-mm", "3"],
                                   ["--train-episode", "5"],           # a typo: no flag is taken for another
-                                  ["--aux-weight", "1"], ["--prior-weight", "1"], ["--seeds", "0,1"]])   # removed
+                                  ["--seeds", "0,1"]])                # seeds.py's now
 def test_bad_arguments_exit_2_with_one_line(args, capsys):
     assert tacrl.main(args) == 2
     err = capsys.readouterr().err
