@@ -33,6 +33,7 @@ interrupted between episodes restarts with the same buffer.
 import collections
 import copy
 import os
+import time
 
 import numpy as np
 import torch
@@ -182,8 +183,9 @@ class ReplayBuffer:
     o' is stored next to o, which doubles the memory but keeps sampling a plain index.
 
     directory: where given, every episode is also written there as ep_NNNNNN.npz (plain arrays:
-    np.load needs no pickle), the files that the ring no longer holds are deleted, and `restore`
-    reads the rest back after a restart."""
+    np.load needs no pickle). A checkpoint keeps `state_dict()`, the files the ring holds and where
+    it stands; `prune()`, called after the checkpoint is saved, deletes the files it no longer holds;
+    `restore(state)` rebuilds the ring exactly, every transition in its slot, after a restart."""
 
     def __init__(self, capacity, obs_shapes, act_dim=6, directory=None):
         self.capacity, self.n, self.i = capacity, 0, 0
@@ -193,10 +195,8 @@ class ReplayBuffer:
         self.act = np.zeros((capacity, act_dim), np.float32)
         self.rew = np.zeros(capacity, np.float32)
         self.term = np.zeros(capacity, np.float32)
-        self.directory = directory
-        self.files = collections.deque()       # (path, transitions) of the episodes on disk, oldest first
-        if directory:
-            os.makedirs(directory, exist_ok=True)
+        self.directory = directory             # made when the first episode is written to it
+        self.files = collections.deque()       # [file name, transitions] of the episodes on disk, oldest first
 
     def __len__(self):
         return self.n
@@ -214,37 +214,56 @@ class ReplayBuffer:
         self.i = (self.i + T) % self.capacity
         self.n = min(self.n + T, self.capacity)
         if self.directory and number is not None:
-            path = os.path.join(self.directory, f"ep_{number:06d}.npz")
+            name = f"ep_{number:06d}.npz"
+            path = os.path.join(self.directory, name)
+            os.makedirs(self.directory, exist_ok=True)
             np.savez(path + ".tmp.npz", act=ep["act"], rew=ep["rew"], term=ep["term"],
                      **{"obs_" + k: ep["obs"][k] for k in self.obs})
             os.replace(path + ".tmp.npz", path)              # an interrupt leaves no half-written file
-            self.files.append((path, T))
-            self._drop_unheld()
+            self.files.append([name, T])
 
-    def _drop_unheld(self):
-        """Delete the oldest files while the newer ones alone fill the ring."""
-        held = sum(n for _, n in self.files)
-        while self.files and held - self.files[0][1] >= self.capacity:
-            path, n = self.files.popleft()
-            os.remove(path)
-            held -= n
+    def _unheld(self):
+        """How many of the oldest files the ring no longer needs: the newer ones alone fill it."""
+        held, k = sum(t for _, t in self.files), 0
+        while k < len(self.files) and held - self.files[k][1] >= self.capacity:
+            held -= self.files[k][1]
+            k += 1
+        return k
 
-    def restore(self, upto):
-        """After a restart: delete the files of episodes after `upto` (one cut short by an interrupt
-        is not in the checkpoint) and those the ring no longer holds, then load the rest."""
-        on_disk = sorted((int(f[3:9]), os.path.join(self.directory, f)) for f in os.listdir(self.directory)
-                         if f.startswith("ep_") and f.endswith(".npz") and ".tmp" not in f)
-        for number, path in on_disk:
-            if number > upto:
-                os.remove(path)
-                continue
-            with np.load(path, allow_pickle=False) as z:
-                self.files.append((path, len(z["act"])))
-        self._drop_unheld()
-        for path, _ in self.files:
-            with np.load(path, allow_pickle=False) as z:
-                self.add_episode({"obs": {k[4:]: z[k] for k in z.files if k.startswith("obs_")},
-                                  "act": z["act"], "rew": z["rew"], "term": z["term"]})
+    def state_dict(self):
+        return {"i": self.i, "n": self.n, "files": [list(f) for f in list(self.files)[self._unheld():]]}
+
+    def prune(self):
+        for _ in range(self._unheld()):
+            os.remove(os.path.join(self.directory, self.files.popleft()[0]))
+
+    def restore(self, state):
+        """Refill the ring from the files a checkpoint's state_dict names, each transition in the slot
+        it had, then delete the other episode files (one cut short by an interrupt, or no longer held).
+        A named file that is missing or damaged is a ValueError that names it, raised before any change."""
+        episodes = []
+        for name, T in state["files"]:
+            path = os.path.join(self.directory, name)
+            if not os.path.exists(path):
+                raise ValueError(f"replay/{name} is missing")
+            try:
+                with np.load(path, allow_pickle=False) as z:
+                    ep = {"obs": {k: z["obs_" + k] for k in self.obs}, "act": z["act"], "rew": z["rew"], "term": z["term"]}
+                if len(ep["act"]) != T or any(len(v) != T + 1 for v in ep["obs"].values()):
+                    raise ValueError(f"{len(ep['act'])} transitions, not {T}")
+            except Exception as e:
+                raise ValueError(f"replay/{name} is damaged ({type(e).__name__}: {str(e)[:80]})")
+            episodes.append(ep)
+        self.i = (state["i"] - sum(t for _, t in state["files"])) % self.capacity
+        self.n, self.files = 0, collections.deque(list(f) for f in state["files"])
+        for ep in episodes:
+            self.add_episode(ep)
+        if (self.i, self.n) != (state["i"], state["n"]):
+            raise ValueError("the replay files do not fill the ring as the checkpoint says")
+        names = {name for name, _ in state["files"]}
+        for f in os.listdir(self.directory) if os.path.isdir(self.directory) else []:
+            if f.startswith("ep_") and f.endswith(".npz") and f not in names:
+                os.remove(os.path.join(self.directory, f))
 
     def sample(self, batch, rng):
         idx = rng.integers(0, self.n, batch)
@@ -298,6 +317,25 @@ class SAC:
     def act(self, obs, deterministic=False):
         """One env observation (unbatched dict) -> action (6,) in [-1, 1]."""
         return act(self.actor_enc, self.actor, obs, deterministic, self.device)
+
+    def parameter_counts(self):
+        n = lambda *ms: sum(p.numel() for m in ms for p in m.parameters())   # noqa: E731
+        shared = ", shared with the critics" if self.shared else ""
+        return (f"actor {n(self.actor_enc, self.actor):,} (encoder {n(self.actor_enc):,}{shared}), "
+                f"critics {n(self.enc, self.q):,} (encoder {n(self.enc):,}, twin Q {n(self.q):,})")
+
+    def update_seconds(self, obs_shapes, batch):
+        """Seconds one update takes, from three made on a copy (this SAC, and torch's random numbers, are
+        left as they were): for an ETA before the first update."""
+        obs = {k: np.zeros((batch, *s), np.uint8 if k == "image" else np.float32) for k, s in obs_shapes.items()}
+        fake = (obs, np.zeros((batch, 6), np.float32), np.zeros(batch, np.float32), obs, np.zeros(batch, np.float32))
+        with torch.random.fork_rng(devices=[self.device] if self.device.type == "cuda" else []):
+            probe = copy.deepcopy(self)
+            probe.update(fake)                       # the first call allocates
+            t0 = time.perf_counter()
+            for _ in range(3):
+                probe.update(fake)
+        return (time.perf_counter() - t0) / 3
 
     def update(self, batch):
         """One gradient step on a batch from ReplayBuffer.sample; returns the losses."""

@@ -19,15 +19,17 @@ import json
 import os
 import shutil
 import sys
+from dataclasses import asdict
 
 import numpy as np
 import torch
 
 import baselines
+import cli
 import figures
 import sim
 import tacrl
-from tacrl import ArgError
+from cli import ArgError
 
 
 # The paper's numbers, next to which ours stand. Table 1: simulated peg, 20 trials after 200 episodes.
@@ -58,12 +60,15 @@ def read_json(path):
 
 def load_run(d):
     """A run dir as {'dir', 'cfg' (config dict), 'm' ({metrics column: array}), 'eval' (eval.json or None)}."""
-    cfg = tacrl.read_config(d)
-    with open(os.path.join(d, "metrics.csv")) as f:
-        rows = list(csv.DictReader(f))
-    ev = read_json(os.path.join(d, "eval.json")) if os.path.exists(os.path.join(d, "eval.json")) else None
-    m = {k: np.array([float(r[k]) for r in rows]) for k in ("episode", "return", "success", "sr15", "e_r_mm",
-                                                             "ex_r_mm", "elapsed_s")}
+    try:
+        cfg = asdict(tacrl.read_config(d))
+        with open(os.path.join(d, "metrics.csv")) as f:
+            rows = list(csv.DictReader(f))
+        ev = read_json(os.path.join(d, "eval.json")) if os.path.exists(os.path.join(d, "eval.json")) else None
+        m = {k: np.array([float(r[k]) for r in rows]) for k in ("episode", "return", "success", "sr15", "e_r_mm",
+                                                                 "ex_r_mm", "elapsed_s")}
+    except (OSError, ValueError, KeyError, TypeError) as e:
+        raise ArgError(f"{d}: a damaged run directory ({cli.describe(e)})")
     return {"dir": d, "cfg": cfg, "m": m, "eval": ev}
 
 
@@ -179,30 +184,44 @@ def match_runs(patterns):
     return dirs
 
 
+def same_file(a, b):
+    with open(a, "rb") as fa, open(b, "rb") as fb:
+        return fa.read() == fb.read()
+
+
 def archive_runs(patterns, dest=RESULTS_DIR, log=print):
     """Copy what the report reads of each finished run (eval.json written) to dest/<run name>/: under
     1 MB a run (policy.pt), where the checkpoint and the replay buffer that stay behind are hundreds of MB.
     A run dir lives on one machine; the archive travels with the repository, so the report can be
-    regenerated from a fresh clone. Returns the archived directories."""
-    done = []
+    regenerated from a fresh clone. A run already archived gets what it has new (the report's cached
+    evaluations); a different run under the same name is refused, before anything is copied. Returns
+    the archived directories."""
+    cli.check_dir_writable(dest, "--to")
+    plan = []
     for d in match_runs(patterns):
         if not os.path.exists(os.path.join(d, "eval.json")):
             log(f"  {d}: not finished (no eval.json), not archived")
             continue
         to = os.path.join(dest, os.path.basename(os.path.normpath(d)))
+        if os.path.exists(to) and not all(os.path.exists(os.path.join(to, f)) and
+                                          same_file(os.path.join(d, f), os.path.join(to, f))
+                                          for f in ("config.json", "metrics.csv", "policy.pt")):
+            raise ArgError(f"{to!r} holds another run than {d!r}: nothing archived (remove it, or rename the run dir)")
+        plan.append((d, to))
+    if not plan:
+        raise ArgError(f"{patterns!r}: no finished run (with eval.json) to archive")
+    for d, to in plan:
         os.makedirs(to, exist_ok=True)
         names = [f for f in os.listdir(d) if f in ARCHIVED or (f.startswith("eval") and f.endswith(".json"))]
         for f in names:
             shutil.copy2(os.path.join(d, f), os.path.join(to, f))
         log(f"  {d} -> {to} ({', '.join(sorted(names))})")
-        done.append(to)
-    if not done:
-        raise ArgError(f"{patterns!r}: no finished run (with eval.json) to archive")
-    return done
+    return [to for _, to in plan]
 
 
 def write_report(patterns, out_dir="docs", log=print):
     """docs/RESULTS.md and its figures from run directories (glob patterns, comma-separated)."""
+    cli.check_dir_writable(out_dir, "--out")
     runs = [load_run(d) for d in match_runs(patterns)]
     os.makedirs(out_dir, exist_ok=True)
     for f in os.listdir(out_dir):          # an earlier report's figures, which these runs may not redraw
@@ -368,7 +387,7 @@ def write_report(patterns, out_dir="docs", log=print):
 
 
 def main(argv=None):
-    ap = tacrl.Parser(description=__doc__.split("\n\n")[0])
+    ap = cli.Parser(description=__doc__.split("\n\n")[0])
     ap.add_argument("runs", help="comma-separated glob patterns of run directories, e.g. 'results/*'")
     ap.add_argument("--archive", action="store_true", help="copy the finished runs' small files to --to instead")
     ap.add_argument("--to", default=RESULTS_DIR, help=f"where --archive copies to (default: {RESULTS_DIR})")
@@ -381,4 +400,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    sys.exit(tacrl.command("report", main))
+    sys.exit(cli.command("report", main))

@@ -16,8 +16,9 @@ import subprocess
 import sys
 import time
 
+import cli
 import tacrl
-from tacrl import ArgError
+from cli import ArgError
 
 
 def strip_flag(argv, flag):
@@ -34,47 +35,57 @@ def strip_flag(argv, flag):
 
 
 def seed_commands(seeds, argv, cores=None):
-    """How many processes at once, and (seed, run dir, command line) for each seed; argv: tacrl.py's flags."""
-    cfg = tacrl.parse_args(argv)                  # a mistake in the flags is found before anything starts
-    if cfg.eval or cfg.resume:
+    """How many processes at once, and (seed, run dir, command line) for each seed; argv: tacrl.py's
+    flags. Each seed's own command line is checked as tacrl.py will check it (its run dir must be new
+    or empty) before any run starts."""
+    given = cli.parse(tacrl.Config, argv, "")        # the flags as typed, checked below with each seed
+    if "eval" in given or "resume" in given:
         raise ArgError("seeds.py trains; --eval and --resume are for one run (tacrl.py)")
-    cores = cores or os.cpu_count() or 1
-    parallel = min(len(seeds), cores)
     base = argv
     for flag in ("--seed", "--run-dir", "--threads"):
         base = strip_flag(base, flag)
+    cores = cores or os.cpu_count() or 1
+    parallel = min(len(seeds), cores)
+    stem = re.sub(r"-s\d+$", "", given.get("run_dir") or tacrl.default_run_dir(tacrl.Config(**given)))
     jobs = []
     for s in seeds:
-        run_dir = re.sub(r"-s\d+$", "", cfg.run_dir) + f"-s{s}"
-        jobs.append((s, run_dir, [sys.executable, os.path.abspath(tacrl.__file__), *base, "--seed", str(s),
-                                  "--run-dir", run_dir, "--threads", str(cfg.threads or max(1, cores // parallel))]))
+        cmd = base + ["--seed", str(s), "--run-dir", f"{stem}-s{s}",
+                      "--threads", str(given.get("threads") or max(1, cores // parallel))]
+        cfg = tacrl.parse_args(cmd)              # a bad seed, or a run dir that holds a run: before anything starts
+        jobs.append((s, cfg.run_dir, [sys.executable, os.path.abspath(tacrl.__file__), *cmd]))
     return parallel, jobs
 
 
 def train_seeds(seeds, argv):
-    """Start the runs, at most `parallel` at a time; a progress line a minute."""
+    """Start the runs, at most `parallel` at a time; a progress line a minute. Raises cli.Failed naming
+    the seeds whose runs failed."""
     parallel, jobs = seed_commands(seeds, argv)
-    todo, running, t0, shown = list(jobs), {}, time.time(), 0.0
+    todo, running, failed, t0, shown = list(jobs), {}, [], time.time(), 0.0
     while todo or running:
         while todo and len(running) < parallel:
             s, run_dir, cmd = todo.pop(0)
             os.makedirs(run_dir, exist_ok=True)
-            running[s] = (subprocess.Popen(cmd, stdout=open(os.path.join(run_dir, "train.log"), "w"),
-                                           stderr=subprocess.STDOUT), run_dir)
-            print(f"seed {s}: started, {run_dir}/train.log", flush=True)
-        time.sleep(5)
+            with open(os.path.join(run_dir, tacrl.LOG), "a") as log:
+                running[s] = (subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT), run_dir)
+            print(f"seed {s}: started, {run_dir}/{tacrl.LOG}", flush=True)
+        time.sleep(1)
         status = []
         for s, (proc, run_dir) in list(running.items()):
-            with open(os.path.join(run_dir, "train.log")) as f:
+            with open(os.path.join(run_dir, tacrl.LOG)) as f:
                 last = [ln for ln in f.read().splitlines() if ln.startswith("ep ")]
             status.append(f"s{s} {last[-1].split()[1] if last else '-'}")
             if proc.poll() is not None:
                 del running[s]
-                print(f"seed {s}: finished with exit code {proc.returncode} ({tacrl.fmt_time(time.time() - t0)})",
+                failed += [(s, proc.returncode)] if proc.returncode else []
+                print(f"seed {s}: finished with exit code {proc.returncode} ({cli.fmt_time(time.time() - t0)})",
                       flush=True)
         if status and time.time() - shown > 60:
             shown = time.time()
-            print(f"[{tacrl.fmt_time(time.time() - t0)}] episodes: {'  '.join(status)}", flush=True)
+            print(f"[{cli.fmt_time(time.time() - t0)}] episodes: {'  '.join(status)}", flush=True)
+    if failed:
+        raise cli.Failed(f"the runs of seed{'s' * (len(failed) > 1)} {', '.join(str(s) for s, _ in failed)} failed "
+                         f"(exit code{'s' * (len(failed) > 1)} {', '.join(str(c) for _, c in failed)}): see their "
+                         f"{tacrl.LOG}")
 
 
 def parse_seeds(text):
@@ -95,4 +106,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    sys.exit(tacrl.command("seeds", main))
+    sys.exit(cli.command("seeds", main))

@@ -26,6 +26,7 @@ Run `python sim.py --gui` to watch the hand-designed policy on the peg board.
 """
 import contextlib
 import os
+import socket
 import sys
 import tempfile
 from dataclasses import dataclass
@@ -284,12 +285,13 @@ def tool_xml(task, clearance):
 
 
 def robot_urdf(task, clearance):
-    """assets/ur5.urdf with the task's tool written into its `tool` link; returns (path, tip_offset)."""
+    """assets/ur5.urdf with the task's tool written into its `tool` link, as a new temporary file of
+    the caller's; returns (path, tip_offset)."""
     with open(os.path.join(ASSETS, "ur5.urdf")) as f:
         text = f.read()
     xml, tip = tool_xml(task, clearance)
-    path = os.path.join(tempfile.gettempdir(), f"tacrl_ur5_{task}_{clearance:.6f}_{os.getpid()}.urdf")
-    with open(path, "w") as f:
+    fd, path = tempfile.mkstemp(prefix=f"tacrl_ur5_{task}_", suffix=".urdf")
+    with os.fdopen(fd, "w") as f:
         f.write(text.replace("<!-- TOOL -->", xml))
     return path, tip
 
@@ -311,15 +313,49 @@ def is_success(x, x_g):
     return bool(np.linalg.norm(x[0] - x_g[0]) < E_TH)
 
 
+def display_problem():
+    """Why PyBullet's window (gui=True) cannot open here, or None. Without an X server, pybullet's GUI
+    thread ends the process or, with its output silenced, hangs it: better to know first."""
+    if not sys.platform.startswith("linux"):
+        return None
+    display = os.environ.get("DISPLAY", "")
+    if not display:
+        return "there is no display (DISPLAY is not set)"
+    host, _, number = display.rpartition(":")
+    number = number.split(".")[0]
+    if not number.isdigit():
+        return f"DISPLAY={display!r} is not a display"
+    if host in ("", "unix"):
+        if not os.path.exists(f"/tmp/.X11-unix/X{number}"):
+            return f"no X server listens at DISPLAY={display!r}"
+        return None
+    try:
+        socket.create_connection((host, 6000 + int(number)), timeout=2).close()
+    except OSError:
+        return f"no X server answers at DISPLAY={display!r}"
+    return None
+
+
 # ---------------------------------------------------------------- the world
 class World:
     """The PyBullet scene: table, UR5 with tool, sensor and camera, one task board, distractors.
-    One DIRECT (or GUI) client of its own; every call names it."""
+    One DIRECT (or GUI) client of its own; every call names it. `rebuild` empties the simulation and
+    builds the scene again: PyBullet keeps history across resetJointState and resetBase... (contact
+    caches, solver warm starts: bullet3 issues 2442, 4387), so an episode run after others would
+    differ from the same episode in a fresh world; after a rebuild it does not."""
 
     def __init__(self, task="peg", clearance=1e-4, gui=False):
-        self.task, self.clearance = task, clearance
+        self.task, self.clearance, self.gui = task, clearance, gui
         with quiet_c_output():
             self.bc = bullet_client.BulletClient(p.GUI if gui else p.DIRECT)
+        self.urdf, self.tip_offset = robot_urdf(task, clearance)      # a temporary file, removed by close
+        self._build()
+
+    def rebuild(self):
+        self.bc.resetSimulation()
+        self._build()
+
+    def _build(self):
         bc = self.bc
         bc.setTimeStep(1.0 / PHYSICS_HZ)
         # The arm runs gravity-compensated, as a UR's own controller does, so its motors can be
@@ -330,17 +366,15 @@ class World:
         # touched the chamfer stayed in the cache after the blade slid past it, still pushing up
         # along the chamfer's normal, and held a centred peg 1 mm into the hole (bench/jam_noise.py).
         bc.setPhysicsEngineParameter(numSolverIterations=50, enableFileCaching=0, contactBreakingThreshold=0.001)
-        if gui:
+        if self.gui:
             bc.configureDebugVisualizer(p.COV_ENABLE_GUI, 0)
         # table: top at z = 0
         col = bc.createCollisionShape(p.GEOM_BOX, halfExtents=[0.6, 0.6, 0.02])
         vis = bc.createVisualShape(p.GEOM_BOX, halfExtents=[0.6, 0.6, 0.02], rgbaColor=[0.62, 0.48, 0.34, 1])
         self.table = bc.createMultiBody(0, col, vis, [0.45, 0.0, -0.02])
         # robot with the task's tool
-        path, self.tip_offset = robot_urdf(task, clearance)
         with quiet_c_output():
-            self.robot = bc.loadURDF(path, useFixedBase=True, flags=p.URDF_USE_INERTIA_FROM_FILE)
-        os.remove(path)
+            self.robot = bc.loadURDF(self.urdf, useFixedBase=True, flags=p.URDF_USE_INERTIA_FROM_FILE)
         names = {bc.getJointInfo(self.robot, j)[12].decode(): j for j in range(bc.getNumJoints(self.robot))}
         self.arm = list(range(6))
         self.ft_joint, self.tool_link, self.cam_link = names["tool"], names["tool"], names["camera"]
@@ -351,9 +385,8 @@ class World:
             bc.setJointMotorControl2(self.robot, j, p.VELOCITY_CONTROL, targetVelocity=0, force=self.max_force[j])
         self.plate, self.parts = self._build_board()
         self.distractors = self._build_distractors()
-        self.context = None
+        self.context = None            # place() colours the scene and sets the distractors for its context
         self.f_bias = np.zeros(6)
-        self.view_proj = None          # cached camera projection for the ROI
         self.goal_yaw = 0.0
 
     # -- scene construction -------------------------------------------------------------
@@ -559,6 +592,7 @@ class World:
 
     def close(self):
         self.bc.disconnect()
+        os.remove(self.urdf)
 
 
 def probe(world, x_start, x_target, f_d=np.zeros(6), ex=(1e-5, 1e-5, 0.05, 0.02, 0.02, 0.001), seconds=6.0,
@@ -724,6 +758,7 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
             self.np_random = np.random.default_rng(seed)
         options = options or {}
         w, ctx = self.world, CONTEXTS[self.context]
+        w.rebuild()                    # every episode in a fresh world: it depends on its seed only
         scale = np.array([self.e_r] * 3 + [E_ROT_FINAL * self.e_r / E_R_FINAL])
         e = np.asarray(options["error"], float) if "error" in options else self.np_random.uniform(-1, 1, 4) * scale  # Eq. 13
         self.x_g, self.x_i = w.place(ctx, np.asarray(options.get("goal_shift", np.zeros(4)), float), self.approach)

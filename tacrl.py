@@ -5,37 +5,37 @@ evaluation of its Tables 1-2. The residual TA-MRP (policy.py) learns F_d on top 
 
     python tacrl.py --task peg                            # train, then evaluate at 5/10/15/20 mm
     python tacrl.py --resume runs/peg-ts-ptv-adaptive-s0  # continue after Ctrl-C or a crash
+    python tacrl.py --resume runs/peg-ts-ptv-adaptive-s0 --train-episodes 400   # extend a finished run
     python tacrl.py --task peg --eval runs/peg-ts-ptv-adaptive-s0/policy.pt --error-mm 20
     python tacrl.py --task peg --eval initial --error-mm 0      # the hand-designed policy alone
     python tacrl.py --task peg --eval two-step --error-mm 20    # the classical baseline (baselines.py)
 
-A run directory holds config.json, ckpt.pt (networks, optimisers, curriculum, RNG states; after every
-episode), replay/ (the replay buffer, one .npz an episode), metrics.csv, and at the end policy.pt,
-curves.png and eval.json. Several seeds in parallel: seeds.py; the results report: report.py.
+A run dir holds config.json, ckpt.pt (networks, optimisers, curriculum, RNG states: after every episode),
+replay/ (one .npz an episode), metrics.csv, then policy.pt, curves.png, eval.json. Several seeds: seeds.py.
 """
-import argparse
 import csv
 import json
 import os
+import signal
 import sys
 import time
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, fields, replace
 
-import cv2
-import numpy as np
-import torch
+if __name__ == "__main__":     # Ctrl-C while torch and pybullet load: one line and exit 130, not a traceback
+    signal.signal(signal.SIGINT, lambda *_: (sys.stderr.write("\ntacrl: interrupted\n"), os._exit(130)))
 
-import baselines
-import curriculum
-import figures
-import legacy
-import policy
-import sim
+import cv2  # noqa: E402
+import numpy as np  # noqa: E402
+import torch  # noqa: E402
 
-
-def opt(default, help, choices=None):
-    """A Config field with its --help text and allowed values: each flag is described here only."""
-    return field(default=default, metadata={"help": help, "choices": choices})
+import baselines  # noqa: E402
+import curriculum  # noqa: E402
+import figures  # noqa: E402
+import legacy  # noqa: E402
+import policy  # noqa: E402
+import sim  # noqa: E402
+import cli  # noqa: E402
+from cli import ArgError, opt  # noqa: E402
 
 
 @dataclass
@@ -43,36 +43,35 @@ class Config:
     # what to run
     task: str = opt("peg", "peg (16 mm peg, 0.1 mm clearance) or gear (Sec. 5.1.1)", ("peg", "gear"))
     eval: str = opt("", "evaluate, not train: initial (F_d = 0), two-step (baselines.py) or a policy.pt")
-    resume: str = opt("", "continue the run in this directory (its config.json wins over other flags)")
-    seed: int = opt(0, "seeds the errors, the networks and the replay sampling")
+    resume: str = opt("", "continue the run in this directory as its config.json says", mode="train")
+    seed: int = opt(0, "seeds the errors, the networks and the replay sampling (0 .. 2^31 - 1)")
     # the task (Sec. 5.1.1)
     error_mm: float = opt(20.0, "error range E_r in mm (Eq. 13-15), 0..30: evaluated, or the curriculum's final one")
     context: str = opt("train", "board location and background (Sec. 5.1.4)", tuple(sim.CONTEXTS))
     roi: str = opt("task", "image window: task (Eq. 11's task attention) or a window of Fig. 11",
                    ("task", *sim.ROI_PRESETS))
     clearance_mm: float = opt(0.1, "diametral clearance of the peg or the gear's bore, mm")
-    # Algorithm 1
-    train_episodes: int = opt(300, "max-episodes of Algorithm 1")
-    obs: str = opt("ts-ptv", "observations (Fig. 9); v, image only: the visual baseline", policy.OBS_KINDS)
-    curriculum: str = opt("adaptive", "error curriculum (Eq. 16, Fig. 10); ex10: E_r adaptive, Ex_r held at 10 mm "
-                                      "(Fig. 9)", curriculum.KINDS)
-    vanilla: bool = opt(False, "the vanilla baseline: no trajectory guidance, the residual acts alone")
-    critic: str = opt("privileged", "privileged critics also read X - X_g (README difference 13)",
-                      ("privileged", "multimodal"))
-    updates: int = opt(200, "SAC gradient steps after each episode (Sec. 5.1.1: 200)")
-    warmup: int = opt(20, "episodes of uniform random actions before the first update (the authors' loop: 20)")
-    batch: int = opt(64, "SAC batch size")
-    buffer: int = opt(50000, "replay capacity, transitions")
-    lr: float = opt(3e-4, "Adam step size of actor, critics and temperature")
-    gamma: float = opt(0.95, "discount (0.99 let the critics thrash: README difference 10)")
-    target_entropy: float = opt(-6.0, "SAC's entropy target (the usual -|A|)")
+    # Algorithm 1 (training only)
+    train_episodes: int = opt(300, "max-episodes of Algorithm 1", mode="train")
+    obs: str = opt("ts-ptv", "observations (Fig. 9); v: the visual baseline", policy.OBS_KINDS, mode="train")
+    curriculum: str = opt("adaptive", "error curriculum (Eq. 16, Fig. 10); ex10: Fig. 9's", curriculum.KINDS, mode="train")
+    vanilla: bool = opt(False, "the vanilla baseline: no trajectory guidance, the residual acts alone", mode="train")
+    critic: str = opt("privileged", "privileged: also X - X_g (README difference 13)", ("privileged", "multimodal"),
+                      mode="train")
+    updates: int = opt(200, "SAC gradient steps after each episode (Sec. 5.1.1: 200)", mode="train")
+    warmup: int = opt(20, "episodes of random actions before the first update (the authors' loop: 20)", mode="train")
+    batch: int = opt(64, "SAC batch size", mode="train")
+    buffer: int = opt(50000, "replay capacity, transitions (at least an episode and a batch)", mode="train")
+    lr: float = opt(3e-4, "Adam step size of actor, critics and temperature", mode="train")
+    gamma: float = opt(0.95, "discount (0.99 let the critics thrash: README difference 10)", mode="train")
+    target_entropy: float = opt(-6.0, "SAC's entropy target (the usual -|A|)", mode="train")
+    eval_levels: str = opt("5,10,15,20", "error ranges (mm) evaluated after training (Table 2)", mode="train")
+    run_dir: str = opt("", "run directory, new or empty (default: runs/<task>-<obs>-...-s<seed>)", mode="train")
     # evaluation (Tables 1-2)
     episodes: int = opt(20, "evaluation episodes a level (the paper: 20 test trials)")
-    eval_levels: str = opt("5,10,15,20", "error ranges (mm) evaluated after training (Table 2)")
-    json: str = opt("", "also write the evaluation row to this JSON file")
-    video: str = opt("", "record the first evaluation episode from an external camera to this .mp4")
+    json: str = opt("", "also write the evaluation row to this new JSON file", mode="eval")
+    video: str = opt("", "record the first evaluation episode from an external camera to this new .mp4", mode="eval")
     # the machine
-    run_dir: str = opt("", "run directory (default: runs/<task>-<obs>-<curriculum>[-e<mm>][-roi-<roi>]...-s<seed>)")
     device: str = opt("auto", "where torch runs", ("auto", "cpu", "cuda"))
     threads: int = opt(0, "torch CPU threads (0: torch's default, one a core)")
     gui: bool = opt(False, "open the PyBullet window")
@@ -82,71 +81,75 @@ EVAL_SEED = 1000             # evaluation episodes use seeds from EVAL_SEED + se
 POSE_SCALE = np.array([sim.E_R_FINAL] * 3 + [sim.E_ROT_FINAL] * 3)   # m, rad: the encoders' pose units
 STATE_DIM = 7                # the privileged critics' obs['state'] (critic_state)
 BASELINES = ("initial", "two-step")
+RESUME_MAY_SET = ("resume", "train_episodes", "threads")     # a resumed run is the same run: nothing else changes
+LOG = "train.log"            # a run's console output, which seeds.py writes into its run dir
 METRICS = ["episode", "return", "success", "sr15", "e_r_mm", "ex_r_mm", "delta", "steps", "total_steps", "updates",
            "q_loss", "pi_loss", "alpha", "entropy", "env_s", "update_s", "elapsed_s"]
 
 
 # ---------------------------------------------------------------- the command line
-class ArgError(Exception):
-    """A user's mistake: reported as one line, exit code 2."""
-
-
-class Parser(argparse.ArgumentParser):
-    """argparse, but a mistake is an ArgError (one line, exit code 2, no usage dump) and no flag may be
-    abbreviated (a typo of one flag must not pass as another)."""
-
-    def __init__(self, **kw):
-        super().__init__(allow_abbrev=False, **kw)
-
-    def error(self, message):
-        raise ArgError(message)
-
-
 def parse_args(argv):
-    ap = Parser(description=__doc__.split("\n\n")[0])
+    """argv -> a checked Config. A flag that would not apply (a training flag with --eval, or the other way
+    round; with --resume, all but --train-episodes and --threads) is a mistake, not silently ignored."""
+    given = cli.parse(Config, argv, __doc__.split("\n\n")[0])      # only the flags on the command line
+    mode = "eval" if "eval" in given else "train"
     for f in fields(Config):
-        flag, hlp = "--" + f.name.replace("_", "-"), f.metadata["help"]
-        if f.type is bool:
-            ap.add_argument(flag, action="store_true", help=hlp)
-        else:
-            ap.add_argument(flag, type=f.type, default=f.default, choices=f.metadata["choices"],
-                            help=f"{hlp} (default: {f.default})" if f.default != "" else hlp)
-    cfg = Config(**vars(ap.parse_args(argv)))
-    if cfg.resume:
-        cfg = load_config(cfg.resume)
+        if f.name in given and f.metadata["mode"] not in (None, mode):
+            raise ArgError(f"--{f.name.replace('_', '-')} is for {'--eval' if mode == 'train' else 'training'}: it "
+                           f"would have no effect {'when training' if mode == 'train' else 'with --eval'}")
+    if "resume" in given:
+        others = [f"--{k.replace('_', '-')}" for k in given if k not in RESUME_MAY_SET]
+        if others:
+            raise ArgError(f"--resume continues a run as its config.json says: {', '.join(others)} cannot change "
+                           f"it (--train-episodes N extends it)")
+        cfg = replace(load_config(given.pop("resume")), **given)   # with --train-episodes, --threads
+    else:
+        cfg = Config(**given)
     check(cfg)
     return cfg
 
 
 def check(cfg):
-    """Every flag's value, before any work starts."""
-    for f in fields(Config):                        # argparse checks these too, but not a resumed config.json's
-        if f.metadata["choices"] and getattr(cfg, f.name) not in f.metadata["choices"]:
-            raise ArgError(f"--{f.name} must be one of {', '.join(f.metadata['choices'])}, not {getattr(cfg, f.name)!r}")
+    """Every value, and every file the command will write, before any work starts."""
     for name, least in {"episodes": 1, "train_episodes": 1, "batch": 1, "buffer": 1, "updates": 0, "warmup": 0,
-                        "threads": 0}.items():
+                        "threads": 0, "seed": 0}.items():
         if getattr(cfg, name) < least:
             raise ArgError(f"--{name.replace('_', '-')} must be at least {least}, not {getattr(cfg, name)}")
     try:
         levels = [float(x) for x in cfg.eval_levels.split(",")]
     except ValueError:
         levels = []
+    e_r_max = max(cfg.error_mm, sim.E_R_FINAL * 1000)      # the training env's largest range (ROI, X_i), mm
     for bad, msg in [
             (cfg.eval and cfg.eval not in BASELINES and not os.path.isfile(cfg.eval),
              f"--eval must be {', '.join(BASELINES)} or an existing policy.pt file, not {cfg.eval!r}"),
             (cfg.eval == "two-step" and cfg.task != "peg", "--eval two-step is the peg-in-hole baseline (Table 1)"),
+            (cfg.seed > 2 ** 31 - 1, f"--seed must be at most 2^31 - 1, not {cfg.seed}"),
             (not 0.0 <= cfg.error_mm <= 30.0, f"--error-mm must be within 0..30, not {cfg.error_mm}"),
             (not 0.0 < cfg.lr < 1.0, f"--lr must be within (0, 1), not {cfg.lr}"),
             (not 0.0 < cfg.gamma < 1.0, f"--gamma must be within (0, 1), not {cfg.gamma}"),
             (not 0.0 < cfg.clearance_mm <= 2.0, f"--clearance-mm must be within (0, 2], not {cfg.clearance_mm}"),
+            (cfg.buffer < max(cfg.batch, sim.MAX_STEPS), f"--buffer {cfg.buffer} must hold an episode ({sim.MAX_STEPS} "
+                                                         f"transitions) and a batch (--batch {cfg.batch})"),
             (cfg.video and not cfg.video.endswith(".mp4"), f"--video must name an .mp4 file, not {cfg.video!r}"),
-            (not levels or not all(0.0 <= x <= 30.0 for x in levels),
-             f"--eval-levels must be comma-separated error ranges in 0..30 mm, not {cfg.eval_levels!r}"),
-            (cfg.device == "cuda" and not torch.cuda.is_available(), "--device cuda: no CUDA device is available")]:
+            (not levels or not all(0.0 <= x <= e_r_max for x in levels),
+             f"--eval-levels must be comma-separated error ranges in 0..{e_r_max:g} mm (the run's env covers "
+             f"--error-mm, and at least 20), not {cfg.eval_levels!r}"),
+            (cfg.device == "cuda" and not torch.cuda.is_available(), "--device cuda: no CUDA device is available"),
+            (cfg.gui and sim.display_problem(), f"--gui: {sim.display_problem()}")]:
         if bad:
             raise ArgError(msg)
-    if not cfg.run_dir:
-        cfg.run_dir = default_run_dir(cfg)
+    for name in [x for x in ("json", "video") if getattr(cfg, x)]:   # written after the work: checked before it
+        cli.check_new_file(getattr(cfg, name), f"--{name}")
+    if not cfg.eval:
+        cfg.run_dir = cfg.run_dir or default_run_dir(cfg)
+        cli.check_dir_writable(cfg.run_dir, "--run-dir")
+        left = os.listdir(cfg.run_dir) if os.path.isdir(cfg.run_dir) else []
+        if not cfg.resume and "config.json" in left:
+            raise ArgError(f"{cfg.run_dir!r} already holds a run: continue it with --resume {cfg.run_dir} "
+                           f"or pick another --run-dir")
+        if not cfg.resume and set(left) - {LOG}:
+            raise ArgError(f"--run-dir {cfg.run_dir!r} is not empty: a new run starts in a new or empty directory")
 
 
 def default_run_dir(cfg):
@@ -161,18 +164,20 @@ def default_run_dir(cfg):
 
 # ---------------------------------------------------------------- configs, checkpoints, small helpers
 def read_config(run_dir):
-    """A run's config.json as a dict."""
+    """A run's config.json as a Config; ValueError if a value is not of its flag's type and choices."""
     with open(os.path.join(run_dir, "config.json")) as f:
-        return legacy.upgrade_config(json.load(f))
+        return cli.from_dict(Config, legacy.upgrade_config(json.load(f)))
 
 
 def load_config(run_dir):
+    if os.path.exists(run_dir) and not os.path.isdir(run_dir):
+        raise ArgError(f"--resume {run_dir!r} is a file, not a run directory")
     try:
-        cfg = Config(**read_config(run_dir))
+        cfg = read_config(run_dir)
     except FileNotFoundError:
         raise ArgError(f"--resume {run_dir!r}: no config.json there (not a run directory)")
-    except (ValueError, TypeError, AttributeError) as e:      # AttributeError: not a JSON object
-        raise ArgError(f"--resume {run_dir!r}: config.json is unreadable ({e})")
+    except (OSError, ValueError) as e:              # a directory named config.json, bad JSON, a wrong type
+        raise ArgError(f"--resume {run_dir!r}: config.json is unreadable ({cli.describe(e)})")
     cfg.run_dir, cfg.resume, cfg.eval = run_dir, run_dir, ""
     return cfg
 
@@ -182,10 +187,9 @@ def pick_device(name):
 
 
 def critic_state(info):
-    """What the privileged critics read besides the last readings (STATE_DIM,): X - X_g (x, y over 5
-    mm, z over 25 mm, yaw over 0.025 rad), x and y again through tanh(. / 1 mm) so that the last
-    millimetre, where the chamfer catches or misses, stands out, and the time over the episode's 24 s.
-    Training knows X_g (Eq. 17's reward is made of it); the actor never sees this."""
+    """What the privileged critics read besides the last readings (STATE_DIM,): X - X_g (x, y over 5 mm, z over
+    25 mm, yaw over 0.025 rad), x and y through tanh(. / 1 mm) so that the last millimetre, where the chamfer
+    catches or misses, stands out, and the time over 24 s. Training knows X_g (Eq. 17 uses it); the actor does not."""
     off = info["goal_offset"]
     return np.array([off[0] / 0.005, off[1] / 0.005, off[2] / 0.025, off[3] / 0.025, np.tanh(off[0] / 0.001),
                      np.tanh(off[1] / 0.001), info["t"] * sim.POLICY_HZ / sim.MAX_STEPS], np.float32)
@@ -196,26 +200,16 @@ def make_sac(cfg, device):
                       state_dim=STATE_DIM if cfg.critic == "privileged" else 0, device=device)
 
 
-def parameter_counts(sac):
-    n = lambda *ms: sum(p.numel() for m in ms for p in m.parameters())   # noqa: E731
-    shared = ", shared with the critics" if sac.shared else ""
-    return (f"actor {n(sac.actor_enc, sac.actor):,} (encoder {n(sac.actor_enc):,}{shared}), "
-            f"critics {n(sac.enc, sac.q):,} (encoder {n(sac.enc):,}, twin Q {n(sac.q):,})")
-
-
-def fmt_time(s):
-    s = int(s)
-    return f"{s // 3600}h{s // 60 % 60:02d}m" if s >= 3600 else f"{s // 60}m{s % 60:02d}s"
-
-
-def save_checkpoint(path, episode, total_steps, elapsed, sac, curr, env, sample_rng):
+def save_checkpoint(path, episode, total_steps, elapsed, sac, curr, env, sample_rng, buf):
     policy.save_atomic({"episode": episode, "total_steps": total_steps, "elapsed": elapsed, "sac": sac.state_dict(),
-                 "curriculum": json.dumps(curr.state_dict()), "env_rng": json.dumps(env.np_random.bit_generator.state),
-                 "sample_rng": json.dumps(sample_rng.bit_generator.state), "torch_rng": torch.get_rng_state()}, path)
+                        "curriculum": json.dumps(curr.state_dict()), "replay": json.dumps(buf.state_dict()),
+                        "env_rng": json.dumps(env.np_random.bit_generator.state),
+                        "sample_rng": json.dumps(sample_rng.bit_generator.state), "torch_rng": torch.get_rng_state()},
+                       path)
 
 
 def load_checkpoint(path, device, sac, curr, env, sample_rng):
-    """Restore a checkpoint into the run's objects; returns (episode, total_steps, elapsed s)."""
+    """Restore a checkpoint into the run's objects: (episode, total_steps, elapsed s, the replay's state)."""
     try:
         ck = torch.load(path, map_location=device, weights_only=True)
         sac.load_state_dict(ck["sac"])
@@ -223,10 +217,18 @@ def load_checkpoint(path, device, sac, curr, env, sample_rng):
         env.np_random.bit_generator.state = json.loads(ck["env_rng"])
         sample_rng.bit_generator.state = json.loads(ck["sample_rng"])
         torch.set_rng_state(ck["torch_rng"])
-        return int(ck["episode"]), int(ck["total_steps"]), float(ck["elapsed"])
+        return int(ck["episode"]), int(ck["total_steps"]), float(ck["elapsed"]), json.loads(ck["replay"])
     except Exception as e:
-        raise ArgError(f"--resume {os.path.dirname(path)!r}: ckpt.pt is corrupt or does not match this run's "
-                       f"config ({type(e).__name__}: {str(e).splitlines()[0][:120]})")
+        raise ArgError(f"--resume {os.path.dirname(path)!r}: ckpt.pt is damaged or does not match this run's "
+                       f"config ({cli.describe(e)})")
+
+
+def eta_seconds(ep, cfg, env_s, update_s, probe_s):
+    """Time the episodes after `ep` (0-based) will take, s: each costs the mean env time so far and,
+    after the warm-up, the mean update phase so far (the probe's before there is one)."""
+    left = cfg.train_episodes - ep - 1
+    with_updates = left - max(0, min(left, cfg.warmup - ep - 1))
+    return left * float(np.mean(env_s)) + with_updates * (float(np.mean(update_s)) if update_s else probe_s)
 
 
 # ---------------------------------------------------------------- training (Algorithm 1)
@@ -252,23 +254,39 @@ def rollout(env, act):
 
 
 def start_run(cfg, device, sac, curr, env, sample_rng, buf, log):
-    """A new run dir, or the one --resume continues; returns (episode, total_steps, elapsed s) to go on from."""
+    """A new run dir, or the one --resume continues, checked and restored: (episode, total_steps, elapsed s)."""
     ckpt, metrics = os.path.join(cfg.run_dir, "ckpt.pt"), os.path.join(cfg.run_dir, "metrics.csv")
-    if not (cfg.resume and os.path.exists(ckpt)):
-        buf.restore(0)                               # no episode is saved: clear a replay/ left before one was
-        with open(os.path.join(cfg.run_dir, "config.json"), "w") as f:
-            json.dump({k: v for k, v in asdict(cfg).items() if k != "resume"}, f, indent=2)
-        with open(metrics, "w", newline="") as f:
-            csv.DictWriter(f, METRICS).writeheader()
-        return 0, 0, 0.0
-    start, total_steps, elapsed = load_checkpoint(ckpt, device, sac, curr, env, sample_rng)
-    buf.restore(start)
-    with open(metrics) as f:                         # drop the rows of an episode the checkpoint has not got
-        rows = [r for r in csv.DictReader(f) if int(r["episode"]) <= start]
-    with open(metrics, "w", newline="") as f:
+    start, total_steps, elapsed, finished, rows = 0, 0, 0.0, False, []
+    if os.path.exists(ckpt):                         # else new, or stopped before its first episode was saved
+        start, total_steps, elapsed, replay = load_checkpoint(ckpt, device, sac, curr, env, sample_rng)
+        finished = os.path.exists(os.path.join(cfg.run_dir, "eval.json"))
+        if cfg.train_episodes < start or (finished and cfg.train_episodes == start):
+            raise ArgError(f"--resume {cfg.run_dir!r}: the run has {start} episodes{' and is finished' * finished}; "
+                           f"--train-episodes N with N > {start} extends it")
+        try:
+            with open(metrics, newline="") as f:
+                reader = csv.DictReader(f)
+                rows = [r for r in reader if int(r["episode"]) <= start]
+            if reader.fieldnames != METRICS or [int(r["episode"]) for r in rows] != list(range(1, start + 1)):
+                raise ValueError(f"its rows are not episodes 1-{start} of this version's columns")
+        except (OSError, ValueError, KeyError, TypeError) as e:
+            raise ArgError(f"--resume {cfg.run_dir!r}: cannot continue the run: {cli.describe(e)}")
+    try:
+        buf.restore(replay if start else {"i": 0, "n": 0, "files": []})   # and delete what no checkpoint holds
+    except ValueError as e:
+        raise ArgError(f"--resume {cfg.run_dir!r}: cannot continue the run: {cli.describe(e)}")
+    with open(metrics, "w", newline="") as f:        # without the row of an episode the checkpoint has not got
         csv.DictWriter(f, METRICS).writeheader()
         csv.DictWriter(f, METRICS).writerows(rows)
-    log(f"resumed {cfg.run_dir} at episode {start} ({len(buf)} transitions in the replay buffer)")
+    for name in ("policy.pt", "eval.json", "curves.png") if finished else ():   # extended: keep what it wrote
+        os.replace(os.path.join(cfg.run_dir, name), os.path.join(cfg.run_dir, name.replace(".", f"-ep{start}.")))
+    if not start or finished:
+        with open(os.path.join(cfg.run_dir, "config.json"), "w") as f:
+            json.dump({k: v for k, v in asdict(cfg).items() if k != "resume"}, f, indent=2)
+    if start:
+        log(f"resumed {cfg.run_dir} at episode {start} of {cfg.train_episodes}: networks, optimisers, curriculum "
+            f"(E_r {curr.ranges()[0] * 1000:g} mm), random states, metrics.csv and the replay buffer ({len(buf)} "
+            f"transitions)" + (f"; the finished run's files are now *-ep{start}.*" if finished else ""))
     return start, total_steps, elapsed
 
 
@@ -285,15 +303,11 @@ def record(cfg, ep, ret, episode, env, curr, losses, total_steps, times):
         csv.DictWriter(f, METRICS).writerow(row)
     return (f"ep {ep + 1:4d}/{cfg.train_episodes}  R {ret:7.1f}  succ {row['success']}  sr15 {curr.success_rate:4.2f}  "
             f"E_r {row['e_r_mm']:4.1f}mm  Ex_r {row['ex_r_mm']:4.1f}mm  delta {curr.delta:5.3f}  steps {row['steps']:3d}  "
-            f"env {times[0]:4.1f}s  upd {times[1]:4.1f}s  elapsed {fmt_time(times[2])}  ETA {fmt_time(times[3])}")
+            f"env {times[0]:4.1f}s  upd {times[1]:4.1f}s  elapsed {cli.fmt_time(times[2])}  ETA {cli.fmt_time(times[3])}")
 
 
 def train(cfg, log=lambda msg: print(msg, flush=True)):
     """Algorithm 1: learning context-generalized TA-MRP with ACRRL. Returns eval.json's contents."""
-    ckpt_path = os.path.join(cfg.run_dir, "ckpt.pt")
-    if not cfg.resume and os.path.exists(ckpt_path):
-        raise ArgError(f"{cfg.run_dir!r} already holds a run: continue it with --resume {cfg.run_dir} "
-                       f"or pick another --run-dir")
     device = pick_device(cfg.device)
     if cfg.threads:
         torch.set_num_threads(cfg.threads)
@@ -309,12 +323,14 @@ def train(cfg, log=lambda msg: print(msg, flush=True)):
     sac = make_sac(cfg, device)
     shapes = {"image": (sim.IMG, sim.IMG), "pose_hist": (sim.HIST, 6), "wrench_hist": (sim.HIST, 6),
               **({"state": (STATE_DIM,)} if cfg.critic == "privileged" else {})}     # what the buffer keeps
-    buf = policy.ReplayBuffer(cfg.buffer, shapes, directory=os.path.join(cfg.run_dir, "replay"))
     sample_rng = np.random.default_rng(cfg.seed + 1)
     try:
+        os.makedirs(cfg.run_dir, exist_ok=True)
+        buf = policy.ReplayBuffer(cfg.buffer, shapes, directory=os.path.join(cfg.run_dir, "replay"))
         start, total_steps, elapsed0 = start_run(cfg, device, sac, curr, env, sample_rng, buf, log)
         log(f"config: {asdict(cfg)}")
-        log(f"parameters: {parameter_counts(sac)}; {device}, {torch.get_num_threads()} torch threads")
+        log(f"parameters: {sac.parameter_counts()}; {device}, {torch.get_num_threads()} torch threads")
+        probe_s, env_s, update_s = sac.update_seconds(shapes, cfg.batch) * cfg.updates, [], []
         t_start = time.time() - elapsed0
         # Lines 7-12, learn the residual TA-MRP
         for ep in range(start, cfg.train_episodes):                     # line 8: for n in max-episodes
@@ -326,15 +342,18 @@ def train(cfg, log=lambda msg: print(msg, flush=True)):
             episode, ret = rollout(env, act)
             buf.add_episode(episode, number=ep + 1)
             total_steps += len(episode["act"])
-            t_env, t0 = time.time() - t0, time.time()
+            env_s.append(time.time() - t0)
+            t0 = time.time()
             losses = [sac.update(buf.sample(cfg.batch, sample_rng))     # line 10: update the policy with SAC
                       for _ in range(cfg.updates if ep >= cfg.warmup else 0)]
-            t_upd = time.time() - t0
+            update_s += [time.time() - t0] if losses else []
             curr.update(bool(episode["term"][-1]))                     # line 11: generate the curriculum, Eq. 16
             elapsed = time.time() - t_start
-            eta = (elapsed - elapsed0) / (ep + 1 - start) * (cfg.train_episodes - ep - 1)
-            line = record(cfg, ep, ret, episode, env, curr, losses, total_steps, (t_env, t_upd, elapsed, eta))
-            save_checkpoint(ckpt_path, ep + 1, total_steps, elapsed, sac, curr, env, sample_rng)   # then it is done
+            times = (env_s[-1], time.time() - t0, elapsed, eta_seconds(ep, cfg, env_s, update_s, probe_s))
+            line = record(cfg, ep, ret, episode, env, curr, losses, total_steps, times)
+            save_checkpoint(os.path.join(cfg.run_dir, "ckpt.pt"), ep + 1, total_steps, elapsed, sac, curr, env,
+                            sample_rng, buf)
+            buf.prune()                              # only now: the last checkpoint still needed those files
             log(line)
     except KeyboardInterrupt:
         raise KeyboardInterrupt(f"every finished episode is saved; continue with --resume {cfg.run_dir}")
@@ -344,11 +363,9 @@ def train(cfg, log=lambda msg: print(msg, flush=True)):
 
 
 def finish(cfg, sac, curr, e_r_max, device, seconds, log):
-    """After the last episode: policy.pt, curves.png, and eval.json, the Table-2-style evaluation on
-    seeds never used in training, in a new simulator."""
-    # what evaluation needs to know of training: the view and the guidance it learned with, the exploration
-    # range Ex_r (m) it ended with (the stiffness of Eq. 9 it learned to push) and the env's e_r_max
-    # (m: its ROI and X_i)
+    """After the last episode: policy.pt (with what evaluation must know of training: its view and
+    guidance, the Ex_r it ended with, m, whose K of Eq. 9 it learned to push, and its env's e_r_max, m),
+    curves.png, and eval.json, the Table-2-style evaluation on seeds never used in training."""
     policy_path = os.path.join(cfg.run_dir, "policy.pt")
     policy.save_policy(policy_path, sac, {"task": cfg.task, "obs": cfg.obs, "roi": cfg.roi, "vanilla": cfg.vanilla,
                                           "ex_r": float(curr.ranges()[1]), "e_r_max": float(e_r_max)})
@@ -374,25 +391,17 @@ def load_policy(path, task, device="cpu"):
     try:
         pi = policy.TrainedPolicy(legacy.upgrade_policy(torch.load(path, map_location=device, weights_only=True)), device)
     except Exception as e:          # corrupt, truncated, foreign: one line for the user
-        raise ArgError(f"--eval {path!r}: cannot load the policy ({type(e).__name__}: {str(e).splitlines()[0][:120]})")
+        raise ArgError(f"--eval {path!r}: cannot load the policy ({cli.describe(e)})")
     if pi.meta["task"] != task:
         raise ArgError(f"--eval {path!r}: this policy was trained for --task {pi.meta['task']}, not {task}")
     return pi
 
 
 def eval_env(task, act, context="train", roi="task", clearance_mm=0.1, e_r_mm=0.0, gui=False):
-    """A new simulator for evaluating `act` (for a TrainedPolicy: at the Ex_r, the ROI and X_i it was
-    trained for, with its guidance). Always a new one: PyBullet carries state across resets (bullet3
-    issue 2442; measured here too), so the simulator a run trained in would give other numbers."""
+    """The env to evaluate `act` in; a TrainedPolicy's at the Ex_r, ROI and X_i it was trained for, with its guidance."""
     m = act.meta if isinstance(act, policy.TrainedPolicy) else {}
     return sim.AssemblyEnv(task, context, e_r=e_r_mm / 1000, ex_r=m.get("ex_r"), roi=roi, clearance=clearance_mm / 1000,
                            gui=gui, trajectory=not m.get("vanilla", False), e_r_max=m.get("e_r_max"))
-
-
-def mean_std(x):
-    """[mean, std], or None where there is nothing to average (no successful episode): JSON null."""
-    x = np.asarray(x, float)
-    return [float(x.mean()), float(x.std())] if len(x) else None
 
 
 def evaluate(env, act, episodes, seed, video=None, log=print):
@@ -415,10 +424,10 @@ def evaluate(env, act, episodes, seed, video=None, log=print):
         if term:
             times.append(info["t"])
         el = time.time() - t0
-        log(f"episode {ep + 1}/{episodes}  success {int(term)}  time {info['t']:5.1f}s  return {ret:7.1f}  "
-            f"|F|max x/y/z {peak[0]:5.1f}/{peak[1]:5.1f}/{peak[2]:5.1f} N  "
-            f"elapsed {el:5.0f}s  ETA {el / (ep + 1) * (episodes - ep - 1):4.0f}s")
+        log(f"episode {ep + 1}/{episodes}  success {int(term)}  time {info['t']:5.1f}s  return {ret:7.1f}  |F|max x/y/z "
+            f"{peak[0]:5.1f}/{peak[1]:5.1f}/{peak[2]:5.1f} N  elapsed {el:5.0f}s  ETA {el / (ep + 1) * (episodes - ep - 1):4.0f}s")
     forces = np.array(forces)
+    mean_std = lambda x: [float(np.mean(x)), float(np.std(x))] if len(x) else None   # noqa: E731 (None: no success)
     return {"success_rate": float(np.mean(succ)), "completion_time_s": mean_std(times),
             "contact_force_x_N": mean_std(forces[:, 0]), "contact_force_y_N": mean_std(forces[:, 1]),
             "contact_force_z_N": mean_std(forces[:, 2]), "cumulative_reward": mean_std(returns),
@@ -450,18 +459,22 @@ def run_evaluation(cfg):
     pi = None if cfg.eval in BASELINES else load_policy(cfg.eval, cfg.task, pick_device(cfg.device))
     if pi is not None and pi.meta["roi"] != cfg.roi:      # its encoder learned that view, not another
         raise ArgError(f"--eval {cfg.eval!r}: this policy was trained with --roi {pi.meta['roi']}, not {cfg.roi}")
+    if pi is not None and cfg.error_mm > pi.meta["e_r_max"] * 1000 + 1e-6:   # Eq. 11's ROI would widen
+        raise ArgError(f"--error-mm {cfg.error_mm:g}: this policy's view covers {pi.meta['e_r_max'] * 1000:g} mm")
     print(f"config: {asdict(cfg)}", flush=True)
     with eval_env(cfg.task, pi, cfg.context, cfg.roi, cfg.clearance_mm, cfg.error_mm, cfg.gui) as env:
+        video = None
+        if cfg.video:
+            size = env.world.render_external().shape[1::-1]
+            video = cv2.VideoWriter(cfg.video, cv2.VideoWriter_fourcc(*"mp4v"), sim.POLICY_HZ, size)
+            if not video.isOpened():
+                raise ArgError(f"--video {cfg.video!r}: OpenCV cannot write an .mp4 there")
         act = pi
         if cfg.eval == "initial":
             act = lambda obs: np.zeros(6)          # noqa: E731  the hand-designed policy alone, F_d = 0
         elif cfg.eval == "two-step":
             act = baselines.TwoStep(env)
             print(f"two-step: calibrated the image -> offset map, median error {act.calibrate() * 1000:.2f} mm")
-        video = None
-        if cfg.video:
-            frame = env.world.render_external()
-            video = cv2.VideoWriter(cfg.video, cv2.VideoWriter_fourcc(*"mp4v"), sim.POLICY_HZ, frame.shape[1::-1])
         try:
             row = evaluate(env, act, cfg.episodes, EVAL_SEED + cfg.seed, video)   # the seeds of eval.json
         finally:
@@ -476,24 +489,10 @@ def run_evaluation(cfg):
         print(f"wrote {cfg.json}")
 
 
-def command(prog, fn):
-    """Run fn() as a command: a user's mistake (ArgError) is one line and exit code 2, Ctrl-C one line
-    and exit code 130. report.py and seeds.py run the same way."""
-    try:
-        fn()
-        return 0
-    except ArgError as e:
-        print(f"{prog}: error: {e}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt as e:
-        print(f"\n{prog}: interrupted" + (f": {e}" if str(e) else ""), file=sys.stderr)
-        return 130
-
-
 def main(argv=None):
     def run(cfg):
         return run_evaluation(cfg) if cfg.eval else train(cfg)
-    return command("tacrl", lambda: run(parse_args(sys.argv[1:] if argv is None else list(argv))))
+    return cli.command("tacrl", lambda: run(parse_args(sys.argv[1:] if argv is None else list(argv))))
 
 
 if __name__ == "__main__":

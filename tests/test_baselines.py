@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 import baselines
+import cli
 import seeds
 import sim
 import tacrl
@@ -47,7 +48,7 @@ def test_seed_commands_one_run_dir_and_thread_share_per_seed():
 @pytest.mark.parametrize("argv", [[], ["--task", "peg"], ["0,x"], ["1,1"], ["0,1", "--task", "screw"],
                                   ["0,1", "--eval", "initial"]])
 def test_seeds_mistakes_are_one_line_and_exit_2(argv, capsys):
-    assert tacrl.command("seeds", lambda: seeds.main(argv)) == 2
+    assert cli.command("seeds", lambda: seeds.main(argv)) == 2
     err = capsys.readouterr().err
     assert err.startswith("seeds: error:") and err.count("\n") == 1
 

@@ -69,19 +69,39 @@ def test_replay_keeps_uint8_images_and_pairs_o_with_o_next():
     assert set(term[r == 19]) == {1.0} and set(term[r != 19]) == {0.0}
 
 
-def test_replay_files_restore_the_buffer_and_keep_only_what_it_holds(tmp_path):
+def test_replay_files_rebuild_the_ring_exactly_and_keep_only_what_it_holds(tmp_path):
     rng = np.random.default_rng(4)
     shapes = {"image": (80, 80), "pose_hist": (32, 6), "wrench_hist": (32, 6)}
     buf = policy.ReplayBuffer(25, shapes, directory=str(tmp_path))
     for n in range(1, 5):                                           # four episodes of 10: the ring holds 25
         buf.add_episode({"obs": fake_obs(rng, 11), "act": rng.uniform(-1, 1, (10, 6)), "rew": rng.normal(size=10),
                          "term": np.zeros(10)}, number=n)
-    # episode 1 is overwritten in the ring; 2 is partly, so its file stays
+        if n == 3:
+            state3 = buf.state_dict()                               # a checkpoint after episode 3
+    assert [name for name, _ in state3["files"]] == ["ep_000001.npz", "ep_000002.npz", "ep_000003.npz"]
+    buf.prune()                                                     # after episode 4's checkpoint: 1 is overwritten
     assert sorted(os.listdir(tmp_path)) == ["ep_000002.npz", "ep_000003.npz", "ep_000004.npz"]
     again = policy.ReplayBuffer(25, shapes, directory=str(tmp_path))
-    again.restore(upto=3)                                           # episode 4 was cut short: not in the checkpoint
-    assert sorted(os.listdir(tmp_path)) == ["ep_000002.npz", "ep_000003.npz"] and len(again) == 20
-    np.testing.assert_array_equal(again.act[10:20], buf.act[(np.arange(20, 30)) % 25])   # episode 3, in order
+    again.restore(buf.state_dict())                                 # every transition back in its slot
+    for k in ("act", "rew", "term"):
+        np.testing.assert_array_equal(getattr(again, k), getattr(buf, k))
+    np.testing.assert_array_equal(again.obs["image"], buf.obs["image"])
+    assert (again.i, again.n) == (buf.i, buf.n)
+    with pytest.raises(ValueError, match="ep_000001.npz is missing"):   # episode 3's checkpoint needs file 1
+        policy.ReplayBuffer(25, shapes, directory=str(tmp_path)).restore(state3)
+    (tmp_path / "ep_000003.npz").write_bytes(b"")                   # truncated to nothing
+    with pytest.raises(ValueError, match="ep_000003.npz is damaged"):
+        policy.ReplayBuffer(25, shapes, directory=str(tmp_path)).restore(buf.state_dict())
+
+
+def test_update_seconds_leaves_the_networks_and_the_random_numbers_as_they_were():
+    torch.manual_seed(0)
+    sac = policy.SAC("ts-ptv")
+    before = [p.clone() for p in sac.actor.parameters()]
+    state = torch.get_rng_state()
+    assert sac.update_seconds({"image": (80, 80), "pose_hist": (32, 6), "wrench_hist": (32, 6)}, 8) > 0
+    assert all(torch.equal(a, b) for a, b in zip(before, sac.actor.parameters()))
+    assert torch.equal(torch.get_rng_state(), state)
 
 
 def test_checkpoint_round_trip_reproduces_actions():

@@ -45,7 +45,7 @@ def test_archived_runs_read_through_the_legacy_shims():
     runs = sorted(glob.glob(os.path.join(ROOT, "results", "*")))
     assert len(runs) >= 30
     for d in runs:
-        cfg = tacrl.Config(**tacrl.read_config(d))
+        cfg = tacrl.read_config(d)
         pi = tacrl.load_policy(os.path.join(d, "policy.pt"), cfg.task)
         assert pi.meta["roi"] == cfg.roi and pi.meta["obs"] == cfg.obs and "enc" not in pi.meta, d
 

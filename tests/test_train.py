@@ -1,43 +1,73 @@
-"""Algorithm 1 end to end in a tiny configuration (3 episodes of at most 30 steps, 2 updates): one
-run, interrupted by Ctrl-C after its second episode and resumed, serves the tests of what a run
-leaves behind; then its policy's evaluation, the archive and the report made from it; and a seeded
-run repeats itself."""
+"""Algorithm 1 end to end in a tiny configuration (12 episodes of at most 30 steps, 2 updates each):
+one run killed in the middle of episode 7's updates and resumed, which must come out as the same run
+uninterrupted, serves the tests of what a run leaves behind; then its policy's evaluation, extending
+it, the archive and the report made from it."""
 import csv
 import json
 import os
 import shutil
 
+import numpy as np
 import pytest
 import torch
 
+import cli
+import policy
 import report
 import sim
 import tacrl
 
-TINY = ["--task", "peg", "--error-mm", "1", "--train-episodes", "3", "--warmup", "1", "--updates", "2",
+TINY = ["--task", "peg", "--error-mm", "1", "--train-episodes", "12", "--warmup", "1", "--updates", "2",
         "--batch", "8", "--episodes", "1", "--eval-levels", "1", "--buffer", "40"]
 SHORT = 30           # steps an episode, not 120: the untrained policy runs every one to the limit
+TIMES = ("env_s", "update_s", "elapsed_s")
+
+
+def metrics(run_dir):
+    with open(os.path.join(run_dir, "metrics.csv")) as f:
+        return list(csv.DictReader(f))
+
+
+@pytest.fixture(scope="module")
+def uninterrupted(tmp_path_factory):
+    run_dir = str(tmp_path_factory.mktemp("train") / "whole")
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(sim, "MAX_STEPS", SHORT)
+        tacrl.train(tacrl.parse_args(TINY + ["--run-dir", run_dir]), log=lambda *_: None)
+    return metrics(run_dir)
 
 
 @pytest.fixture(scope="module")
 def tiny_run(tmp_path_factory):
     run_dir = str(tmp_path_factory.mktemp("train") / "run")
-    first, second = [], []
+    first, second, calls = [], [], []
+    real_update = policy.SAC.update
 
-    def interrupt_after_episode_2(msg):
-        first.append(msg)
-        if msg.startswith("ep    2/3"):
-            raise KeyboardInterrupt      # as Ctrl-C right after episode 2 was saved
+    def killed_in_episode_7(sac, batch):      # updates run from episode 2, two an episode: call 11 is in episode 7
+        calls.append(np.any(batch[1]))       # (not the start-up probe's calls, whose actions are all zero)
+        if sum(calls) == 11:
+            raise KeyboardInterrupt            # as a kill: episode 7's replay file is written, its checkpoint not
+        return real_update(sac, batch)
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(sim, "MAX_STEPS", SHORT)
+        mp.setattr(policy.SAC, "update", killed_in_episode_7)
         with pytest.raises(KeyboardInterrupt, match="--resume"):
-            tacrl.train(tacrl.parse_args(TINY + ["--run-dir", run_dir]), log=interrupt_after_episode_2)
-        replay_at_interrupt = sorted(os.listdir(os.path.join(run_dir, "replay")))
+            tacrl.train(tacrl.parse_args(TINY + ["--run-dir", run_dir]), log=first.append)
+        replay_at_kill = sorted(os.listdir(os.path.join(run_dir, "replay")))
+        rows_at_kill = metrics(run_dir)
+        mp.setattr(policy.SAC, "update", real_update)
         tacrl.train(tacrl.parse_args(["--resume", run_dir]), log=second.append)
-    with open(os.path.join(run_dir, "metrics.csv")) as f:
-        rows = list(csv.DictReader(f))
-    return {"dir": run_dir, "first": first, "second": second, "replay_at_interrupt": replay_at_interrupt,
-            "rows": rows, "eval": json.loads(open(os.path.join(run_dir, "eval.json")).read())}
+    return {"dir": run_dir, "first": first, "second": second, "replay_at_kill": replay_at_kill,
+            "rows_at_kill": rows_at_kill, "rows": metrics(run_dir),
+            "eval": json.loads(open(os.path.join(run_dir, "eval.json")).read())}
+
+
+def test_a_run_killed_and_resumed_is_the_same_run_as_one_never_stopped(tiny_run, uninterrupted):
+    # each episode is simulated in a new world and the replay buffer is rebuilt slot by slot, so the
+    # resumed run repeats the uninterrupted one to the last digit (and two runs of a seed are the same)
+    strip = lambda rows: [{k: v for k, v in r.items() if k not in TIMES} for r in rows]   # noqa: E731
+    assert len(uninterrupted) == 12 and any(float(r["q_loss"]) > 0 for r in uninterrupted)
+    assert strip(tiny_run["rows"]) == strip(uninterrupted)
 
 
 def test_start_up_lines_give_the_config_and_the_parameter_counts(tiny_run):
@@ -45,12 +75,13 @@ def test_start_up_lines_give_the_config_and_the_parameter_counts(tiny_run):
     assert tiny_run["first"][1].startswith("parameters: actor ") and "critics " in tiny_run["first"][1]
 
 
-def test_interrupt_loses_no_finished_episode_and_resume_goes_on_from_it(tiny_run):
-    assert tiny_run["replay_at_interrupt"] == ["ep_000001.npz", "ep_000002.npz"]
-    assert any(x.startswith(f"resumed {tiny_run['dir']} at episode 2") for x in tiny_run["second"])
+def test_a_kill_loses_only_the_episode_in_flight(tiny_run):
+    assert [int(r["episode"]) for r in tiny_run["rows_at_kill"]] == list(range(1, 7))
+    assert tiny_run["replay_at_kill"][-1] == "ep_000007.npz"       # written, but not in the checkpoint
+    assert any(x.startswith(f"resumed {tiny_run['dir']} at episode 6 of 12: ") for x in tiny_run["second"])
     episodes = [x.split()[1] for x in tiny_run["second"] if x.startswith("ep ")]
-    assert episodes == ["3/3"]
-    assert [int(x["episode"]) for x in tiny_run["rows"]] == [1, 2, 3]
+    assert episodes == [f"{k}/12" for k in range(7, 13)]
+    assert [int(x["episode"]) for x in tiny_run["rows"]] == list(range(1, 13))
 
 
 def test_a_finished_run_leaves_every_file(tiny_run):
@@ -59,17 +90,18 @@ def test_a_finished_run_leaves_every_file(tiny_run):
 
 
 def test_updates_start_after_the_warmup(tiny_run):
-    assert [int(x["updates"]) for x in tiny_run["rows"]] == [0, 2, 2]
+    assert [int(x["updates"]) for x in tiny_run["rows"]] == [0] + [2] * 11
 
 
 def test_the_replay_on_disk_is_what_the_ring_buffer_holds(tiny_run):
     steps = [int(x["steps"]) for x in tiny_run["rows"]]
-    keep = next(i for i in range(3, -1, -1) if sum(steps[i:]) >= 40 or i == 0)     # newest that fill 40
+    keep = next(i for i in range(12, -1, -1) if sum(steps[i:]) >= 40 or i == 0)     # newest that fill 40
     kept = sorted(os.listdir(os.path.join(tiny_run["dir"], "replay")))
-    assert kept == [f"ep_{i + 1:06d}.npz" for i in range(keep, 3)], (steps, kept)
+    assert kept == [f"ep_{i + 1:06d}.npz" for i in range(keep, 12)], (steps, kept)
 
 
-def test_a_run_dir_that_holds_a_run_is_not_started_over(tiny_run, capsys):
+def test_a_run_dir_that_holds_a_run_is_not_started_over(tiny_run, capsys, monkeypatch):
+    monkeypatch.setattr(sim, "MAX_STEPS", SHORT)          # (TINY's 40-transition buffer holds a short episode)
     assert tacrl.main(TINY + ["--run-dir", tiny_run["dir"]]) == 2
     assert "--resume" in capsys.readouterr().err
 
@@ -118,7 +150,7 @@ def test_archive_keeps_what_the_report_reads_and_skips_unfinished_runs(tiny_run,
         [str(results / "run")]
     assert sorted(os.listdir(results / "run")) == ["config.json", "curves.png", "eval.json", "metrics.csv", "policy.pt"]
     assert any(str(unfinished) in x and "not finished" in x for x in lines)
-    assert tacrl.command("report", lambda: report.main([str(unfinished), "--archive"])) == 2
+    assert cli.command("report", lambda: report.main([str(unfinished), "--archive"])) == 2
 
 
 def test_report_is_written_from_an_archive(tiny_run, tmp_path):
@@ -131,7 +163,7 @@ def test_report_is_written_from_an_archive(tiny_run, tmp_path):
            "episodes": 20}      # the two-step row's cache: evaluating the baseline takes a minute
     (docs / "two-step-peg-20mm.json").write_text(json.dumps(row))
     (docs / "fig-peg-obs.png").write_bytes(b"an earlier report's figure, of runs this one has not got")
-    assert tacrl.command("report", lambda: report.main([str(results / "*"), "--out", str(docs)])) == 0
+    assert cli.command("report", lambda: report.main([str(results / "*"), "--out", str(docs)])) == 0
     text = (docs / "RESULTS.md").read_text()
     assert str(results / "run") in text and "Table 1" in text and "Table 2" in text
     assert "| two-step | - | 0.50 | 10.00 +- 1.00 |" in text
@@ -148,12 +180,24 @@ def test_behaviour_and_view_figures(tiny_run, tmp_path, monkeypatch):
     assert (tmp_path / "behaviour.png").stat().st_size > 0 and (tmp_path / "views.png").stat().st_size > 0
 
 
-def test_a_seeded_run_repeats_itself(tmp_path, monkeypatch):
+def test_a_finished_run_is_not_resumed_but_can_be_extended(tiny_run, tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(sim, "MAX_STEPS", SHORT)
-    metrics = []
-    for name in ("a", "b"):
-        tacrl.train(tacrl.parse_args(TINY + ["--seed", "3", "--run-dir", str(tmp_path / name)]), log=lambda *_: None)
-        with open(tmp_path / name / "metrics.csv") as f:
-            metrics.append([{k: v for k, v in r.items() if not k.endswith("_s")} for r in csv.DictReader(f)])
-    assert metrics[0] == metrics[1] and len(metrics[0]) == 3
-    assert any(float(r["q_loss"]) > 0 for r in metrics[0])            # updates ran, and came out the same
+    assert tacrl.main(["--resume", tiny_run["dir"]]) == 2
+    assert "is finished; --train-episodes N with N > 12 extends it" in capsys.readouterr().err
+    run_dir = str(tmp_path / "run")
+    shutil.copytree(tiny_run["dir"], run_dir)
+    assert tacrl.main(["--resume", run_dir, "--train-episodes", "13"]) == 0
+    assert "the finished run's files are now *-ep12.*" in capsys.readouterr().out
+    assert [int(r["episode"]) for r in metrics(run_dir)] == list(range(1, 14))
+    for f in ("policy-ep12.pt", "eval-ep12.json", "curves-ep12.png", "policy.pt", "eval.json"):
+        assert os.path.exists(os.path.join(run_dir, f)), f
+    assert json.load(open(os.path.join(run_dir, "config.json")))["train_episodes"] == 13
+
+
+def test_the_eta_counts_the_updates_still_to_come_during_the_warmup():
+    cfg = tacrl.Config(train_episodes=300, warmup=20)
+    # after episode 1 of the warm-up (1 s of env), before any update: 299 episodes of env, 280 with an
+    # update phase as long as the probe measured (6 s)
+    assert tacrl.eta_seconds(0, cfg, [1.0], [], 6.0) == pytest.approx(299 * 1.0 + 280 * 6.0)
+    # later, the update phases measured replace the probe
+    assert tacrl.eta_seconds(99, cfg, [2.0] * 100, [4.0] * 80, 6.0) == pytest.approx(200 * (2.0 + 4.0))

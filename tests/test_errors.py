@@ -1,0 +1,223 @@
+"""A user's mistake, in every mode, is one line naming the flag or file, exit code 2, and changes
+nothing on disk; Ctrl-C is one line and exit code 130; a launcher of several runs overwrites none and
+says which failed; random flag values come out of the checks as a Config or as one such line."""
+import json
+import os
+import shutil
+import string
+import sys
+import time
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+import baselines
+import cli
+import report
+import seeds
+import sim
+import tacrl
+
+TINY = ["--task", "peg", "--error-mm", "1", "--train-episodes", "3", "--warmup", "1", "--updates", "2",
+        "--batch", "8", "--episodes", "1", "--eval-levels", "1", "--buffer", "40"]
+
+
+def snapshot(root):
+    """Every file and folder under root, with each file's size and time of last change (a file written
+    again, even with the same bytes, counts as changed)."""
+    out = {}
+    for d, dirs, files in os.walk(root):
+        for name in dirs + files:
+            st_ = os.stat(os.path.join(d, name))
+            out[os.path.relpath(os.path.join(d, name), root)] = "dir" if name in dirs else (st_.st_size, st_.st_mtime_ns)
+    return out
+
+
+@pytest.fixture(scope="module")
+def unfinished_run(tmp_path_factory):
+    """A tiny run that trained its three episodes but was stopped before its evaluation: one to --resume."""
+    run_dir = str(tmp_path_factory.mktemp("errors") / "run")
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(sim, "MAX_STEPS", 30)
+        tacrl.train(tacrl.parse_args(TINY + ["--run-dir", run_dir]), log=lambda *_: None)
+    os.remove(os.path.join(run_dir, "eval.json"))
+    return run_dir
+
+
+@pytest.fixture(scope="module")
+def workdir(tmp_path_factory, unfinished_run):
+    """A working directory with the things the mistakes below point at (shared: none may change it)."""
+    tmp_path = tmp_path_factory.mktemp("here")
+    (tmp_path / "afile").write_text("a file")
+    (tmp_path / "adir").mkdir()
+    (tmp_path / "full").mkdir()
+    (tmp_path / "full" / "notes.txt").write_text("someone's")
+    (tmp_path / "adir.mp4").mkdir()
+    (tmp_path / "row.json").write_text("{}")
+    (tmp_path / "empty.pt").write_bytes(b"")
+    for name, config in (("badtype", '{"episodes": "x"}'), ("notjson", "{task: peg"), ("badchoice", '{"task": "screw"}')):
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "config.json").write_text(config)
+    (tmp_path / "cfgdir" / "config.json").mkdir(parents=True)
+    for name in ("run", "emptyckpt", "badreplay", "noreplay", "nometrics", "badmetrics"):
+        shutil.copytree(unfinished_run, tmp_path / name)
+    (tmp_path / "emptyckpt" / "ckpt.pt").write_bytes(b"")
+    replay = sorted(os.listdir(tmp_path / "badreplay" / "replay"))
+    (tmp_path / "badreplay" / "replay" / replay[-1]).write_bytes(b"PK\x03\x04 truncated")
+    shutil.rmtree(tmp_path / "noreplay" / "replay")
+    os.remove(tmp_path / "nometrics" / "metrics.csv")
+    (tmp_path / "badmetrics" / "metrics.csv").write_text("episode,return\n1,x\n")
+    return tmp_path
+
+
+@pytest.fixture
+def here(workdir, monkeypatch):
+    monkeypatch.chdir(workdir)
+    monkeypatch.setattr(sim, "MAX_STEPS", 30)                 # TINY's 40-transition buffer holds an episode
+    monkeypatch.delenv("DISPLAY", raising=False)
+    return workdir
+
+
+def mistake(argv, here, capsys, main=tacrl.main, prog="tacrl"):
+    """Run a command that must refuse: returns its one line."""
+    before = snapshot(here)
+    capsys.readouterr()
+    assert main(argv) == 2, argv
+    err = capsys.readouterr().err
+    assert err.startswith(f"{prog}: error: ") and err.count("\n") == 1 and "Traceback" not in err, err
+    assert snapshot(here) == before, "the refused command changed files on disk"
+    return err
+
+
+@pytest.mark.parametrize("argv, says", [
+    # numbers that are not numbers, seeds out of range
+    (["--lr", "nan"], "--lr: not a finite number"), (["--gamma", "inf"], "--gamma: not a finite number"),
+    (["--error-mm", "-nan"], "--error-mm"), (["--clearance-mm", "1e999"], "--clearance-mm"),
+    (["--seed", "-1"], "--seed must be at least 0"), (["--seed", str(2 ** 40)], "--seed must be at most"),
+    # a replay buffer smaller than an episode or a batch; evaluation levels the env does not cover
+    (["--buffer", "29"], "--buffer 29 must hold an episode"), (["--buffer", "40", "--batch", "64"], "and a batch"),
+    (["--eval-levels", "25"], "--eval-levels"),
+    # the run dir: a file, under a file, unwritable, someone else's folder, a run already
+    (["--run-dir", "afile"], "is a file"), (["--run-dir", "afile/run"], "is a file"),
+    (["--run-dir", "/proc/tacrl-run"], "nothing can be written"), (["--run-dir", "full"], "is not empty"),
+    (["--run-dir", "run"], "already holds a run: continue it with --resume"),
+    # --resume of what is not a run, or with flags it cannot honour
+    (["--resume", "afile"], "is a file, not a run directory"), (["--resume", "adir"], "no config.json"),
+    (["--resume", "cfgdir"], "config.json is unreadable (IsADirectoryError"),
+    (["--resume", "badtype"], "'episodes' is 'x', not a int"), (["--resume", "notjson"], "JSONDecodeError"),
+    (["--resume", "badchoice"], "'task' is 'screw'"),
+    (["--resume", "run", "--lr", "0.1"], "--lr cannot change it"),
+    (["--resume", "run", "--train-episodes", "1"], "the run has 3 episodes"),
+    # --resume of a damaged run: one line, nothing rebuilt that cannot be
+    (["--resume", "emptyckpt"], "ckpt.pt is damaged"), (["--resume", "badreplay"], "is damaged"),
+    (["--resume", "noreplay"], "is missing"), (["--resume", "nometrics"], "metrics.csv"),
+    (["--resume", "badmetrics"], "cannot continue the run"),
+    # evaluation: files to write checked before the work, nothing overwritten, a policy that cannot be
+    (["--eval", "empty.pt"], "cannot load the policy (EOFError"),
+    (["--eval", "initial", "--json", "no/such/row.json"], "does not exist"),
+    (["--eval", "initial", "--json", "adir"], "is a directory"), (["--eval", "initial", "--json", "row.json"], "exists"),
+    (["--eval", "initial", "--json", "/proc/row.json"], "nothing can be written"),
+    (["--eval", "initial", "--video", "no/such/ep.mp4"], "does not exist"),
+    (["--eval", "initial", "--video", "adir.mp4"], "is a directory"),
+    (["--eval", "initial", "--video", "/proc/ep.mp4"], "nothing can be written"),
+    (["--eval", "run/policy.pt", "--error-mm", "25"], "this policy's view covers 20 mm"),
+    # flags that would do nothing in this mode; typos; no display for --gui
+    (["--eval", "initial", "--lr", "0.1"], "--lr is for training"), (["--json", "x.json"], "--json is for --eval"),
+    (["--eval", "initial", "--vanilla"], "--vanilla is for training"), (["--train-episode", "5"], "unrecognized"),
+    (["--eval", "initial", "--gui"], "--gui: there is no display"),
+])
+def test_a_mistake_is_one_line_exit_2_and_changes_nothing(argv, says, here, capsys):
+    t0 = time.time()
+    assert says in mistake(argv, here, capsys)
+    assert time.time() - t0 < 10                         # no hang (--gui without a display once hung for good)
+
+
+def test_ctrl_c_in_the_two_step_calibration_is_one_line_and_exit_130(here, capsys, monkeypatch):
+    def interrupted(self, *a, **kw):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(baselines.TwoStep, "calibrate", interrupted)
+    assert tacrl.main(["--eval", "two-step"]) == 130
+    err = capsys.readouterr().err
+    assert err.strip() == "tacrl: interrupted"
+
+
+def test_ctrl_c_while_training_says_how_to_resume(here, tmp_path, capsys, monkeypatch):
+    def interrupted(*a, **kw):
+        raise KeyboardInterrupt
+    monkeypatch.chdir(tmp_path)                               # this one writes a run dir
+    monkeypatch.setattr(tacrl, "rollout", interrupted)
+    assert tacrl.main(TINY + ["--run-dir", "new"]) == 130
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and err.endswith("continue with --resume new")
+
+
+def test_seeds_never_overwrite_a_run_and_check_every_seed_first(here, tmp_path, capsys, monkeypatch, unfinished_run):
+    monkeypatch.chdir(tmp_path)
+    shutil.copytree(unfinished_run, "runs-s1")
+    before = snapshot(tmp_path)
+    assert cli.command("seeds", lambda: seeds.main(["0,1", *TINY, "--run-dir", "runs-s0"])) == 2
+    assert "'runs-s1' already holds a run" in capsys.readouterr().err
+    assert cli.command("seeds", lambda: seeds.main(["2,-3", *TINY])) == 2         # the bad one is found first
+    assert "--seed must be at least 0" in capsys.readouterr().err
+    assert snapshot(tmp_path) == before
+
+
+def test_seeds_exit_1_naming_the_seeds_whose_runs_failed(here, capsys, monkeypatch):
+    jobs = [(s, f"s{s}", [sys.executable, "-c", f"import sys; sys.exit({code})"]) for s, code in ((0, 0), (1, 3), (2, 1))]
+    monkeypatch.setattr(seeds, "seed_commands", lambda *a, **kw: (2, jobs))
+    assert cli.command("seeds", lambda: seeds.main(["0,1,2", "--task", "peg"])) == 1
+    err = capsys.readouterr().err
+    assert err.strip() == "seeds: failed: the runs of seeds 1, 2 failed (exit codes 3, 1): see their train.log"
+
+
+def test_report_and_archive_mistakes(here, tmp_path, capsys, monkeypatch, unfinished_run):
+    run = lambda *argv: cli.command("report", lambda: report.main(list(argv)))   # noqa: E731
+    monkeypatch.chdir(tmp_path)
+    for name in ("afile", "badtype", "run"):
+        shutil.copytree(here / name, name) if name != "afile" else shutil.copy(here / name, name)
+    before = snapshot(tmp_path)
+    for argv, says in ((["run", "--out", "afile"], "is a file"), (["no/such/*"], "no run directory"),
+                       (["badtype"], "no run directory"), (["run", "--archive"], "no finished run")):
+        assert run(*argv) == 2
+        err = capsys.readouterr().err
+        assert says in err and err.count("\n") == 1, (argv, err)
+    shutil.copy(os.path.join(unfinished_run, "metrics.csv"), "badtype/metrics.csv")   # a run dir, badly configured
+    assert run("badtype") == 2 and "a damaged run directory" in capsys.readouterr().err
+    os.remove("badtype/metrics.csv")
+    assert snapshot(tmp_path) == before
+    # archiving onto another run of the same name copies nothing
+    os.makedirs("results/run")
+    with open("results/run/config.json", "w") as f:
+        f.write("{}")
+    with open("run/eval.json", "w") as f:
+        json.dump({"rows": []}, f)
+    before = snapshot(tmp_path)
+    assert run("run", "--archive", "--to", "results") == 2
+    assert "holds another run" in capsys.readouterr().err and snapshot(tmp_path) == before
+
+
+FLAGS = {"--task": st.sampled_from(["peg", "gear", "screw", ""]), "--error-mm": st.floats(allow_nan=True),
+         "--seed": st.integers(-5, 2 ** 33), "--lr": st.floats(), "--gamma": st.floats(-1, 2),
+         "--batch": st.integers(-2, 100), "--buffer": st.integers(-2, 300), "--episodes": st.integers(-2, 5),
+         "--eval-levels": st.text(string.digits + ",.-x", max_size=8), "--roi": st.sampled_from(["task", "full", "x"]),
+         "--eval": st.sampled_from(["initial", "two-step", "nope.pt", ""]),
+         "--run-dir": st.sampled_from(["afile", "adir", "new", "/proc/x", ""]),
+         "--json": st.sampled_from(["row.json", "new.json", "adir"]), "--clearance-mm": st.floats(-1, 3),
+         "--threads": st.integers(-2, 4), "--warmup": st.integers(-2, 30), "--context": st.text(max_size=6)}
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(flags=st.dictionaries(st.sampled_from(sorted(FLAGS)), st.none(), max_size=6).flatmap(
+    lambda keys: st.fixed_dictionaries({k: FLAGS[k] for k in keys})))
+def test_random_flag_values_give_a_checked_config_or_one_line(flags, here):
+    argv = [x for k, v in flags.items() for x in (k, str(v))]
+    before = snapshot(here)
+    try:
+        cfg = tacrl.parse_args(argv)
+    except cli.ArgError as e:
+        assert "\n" not in str(e) and str(e)
+    else:                                   # what got through is what the flags promise
+        assert cfg.task in ("peg", "gear") and 0 <= cfg.error_mm <= 30 and 0 < cfg.lr < 1 and 0 < cfg.gamma < 1
+        assert cfg.seed >= 0 and cfg.buffer >= max(cfg.batch, sim.MAX_STEPS) and cfg.episodes >= 1
+    assert snapshot(here) == before
