@@ -7,6 +7,7 @@ import argparse
 import dataclasses
 import math
 import os
+import signal
 import sys
 import tempfile
 
@@ -64,14 +65,17 @@ def from_dict(config_cls, d):
         if f.type is float and type(v) is int:
             d[k] = v = float(v)
         if type(v) is not f.type or (f.type is float and not math.isfinite(v)):
-            raise ValueError(f"{k!r} is {v!r}, not a {f.type.__name__}")
+            kind = {int: "an integer", float: "a finite number", str: "a string", bool: "true or false"}[f.type]
+            raise ValueError(f"{k!r} is {v!r}, not {kind}")
         if f.metadata["choices"] and v not in f.metadata["choices"]:
             raise ValueError(f"{k!r} is {v!r}, not one of {', '.join(f.metadata['choices'])}")
     return config_cls(**d)
 
 
 def command(prog, fn):
-    """Run fn() as the command `prog`; returns its exit code."""
+    """Run fn() as the command `prog`; returns its exit code. From here Ctrl-C is a KeyboardInterrupt
+    again (the scripts make it a plain exit while their imports load), so that fn can say what is saved."""
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
         fn()
         return 0

@@ -18,18 +18,22 @@ import glob
 import json
 import os
 import shutil
+import signal
 import sys
 from dataclasses import asdict
 
-import numpy as np
-import torch
+if __name__ == "__main__":     # Ctrl-C while torch and pybullet load: one line and exit 130
+    signal.signal(signal.SIGINT, lambda *_: (sys.stderr.write("\nreport: interrupted\n"), os._exit(130)))
 
-import baselines
-import cli
-import figures
-import sim
-import tacrl
-from cli import ArgError
+import numpy as np  # noqa: E402
+import torch  # noqa: E402
+
+import baselines  # noqa: E402
+import cli  # noqa: E402
+import figures  # noqa: E402
+import sim  # noqa: E402
+import tacrl  # noqa: E402
+from cli import ArgError  # noqa: E402
 
 
 # The paper's numbers, next to which ours stand. Table 1: simulated peg, 20 trials after 200 episodes.

@@ -12,13 +12,17 @@ train.log, resumable on its own with `python tacrl.py --resume DIR`.
 """
 import os
 import re
+import signal
 import subprocess
 import sys
 import time
 
-import cli
-import tacrl
-from cli import ArgError
+if __name__ == "__main__":     # Ctrl-C while torch and pybullet load: one line and exit 130
+    signal.signal(signal.SIGINT, lambda *_: (sys.stderr.write("\nseeds: interrupted\n"), os._exit(130)))
+
+import cli  # noqa: E402
+import tacrl  # noqa: E402
+from cli import ArgError  # noqa: E402
 
 
 def strip_flag(argv, flag):

@@ -105,7 +105,7 @@ def mistake(argv, here, capsys, main=tacrl.main, prog="tacrl"):
     # --resume of what is not a run, or with flags it cannot honour
     (["--resume", "afile"], "is a file, not a run directory"), (["--resume", "adir"], "no config.json"),
     (["--resume", "cfgdir"], "config.json is unreadable (IsADirectoryError"),
-    (["--resume", "badtype"], "'episodes' is 'x', not a int"), (["--resume", "notjson"], "JSONDecodeError"),
+    (["--resume", "badtype"], "'episodes' is 'x', not an integer"), (["--resume", "notjson"], "JSONDecodeError"),
     (["--resume", "badchoice"], "'task' is 'screw'"),
     (["--resume", "run", "--lr", "0.1"], "--lr cannot change it"),
     (["--resume", "run", "--train-episodes", "1"], "the run has 3 episodes"),
