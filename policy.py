@@ -137,6 +137,20 @@ class StateEncoder(nn.Module):
         return torch.cat([pose, wrench, obs["state"]], 1)
 
 
+STATE_DIM = 7
+
+
+def critic_state(goal_offset, t):
+    """What privileged critics read besides the last readings, obs['state'] (STATE_DIM,): the tip's offset
+    from the true goal X - X_g (x, y over 5 mm, z over 25 mm, yaw over 0.025 rad; m, rad), x and y again
+    through tanh(. / 1 mm) so that the last millimetre, where the chamfer catches or misses, stands out,
+    and the time t as a fraction of the episode. Training knows X_g (Eq. 17's reward is made of it); the
+    actor never reads this."""
+    off = goal_offset
+    return np.array([off[0] / 0.005, off[1] / 0.005, off[2] / 0.025, off[3] / 0.025, np.tanh(off[0] / 0.001),
+                     np.tanh(off[1] / 0.001), t], np.float32)
+
+
 # ---------------------------------------------------------------- actor and critics
 class Actor(nn.Module):
     """Fusion vector -> 2 x 256 MLP -> mean and log-std of a 6-d Gaussian, squashed by tanh."""
@@ -309,10 +323,12 @@ class SAC:
         self.target_entropy = -float(act_dim) if target_entropy is None else float(target_entropy)
         self._online_params = list(self.enc.parameters()) + list(self.q.parameters())
         self._targ_params = list(self.enc_targ.parameters()) + list(self.q_targ.parameters())
-        self.q_opt = torch.optim.Adam(self._online_params, lr=lr, foreach=True)
+        # fused Adam: one kernel a step for all parameters; the same Adam to rounding (1.5e-7 apart after 10
+        # updates), 1.06x the updates/s of foreach=True here (bench/bench_update.py)
+        self.q_opt = torch.optim.Adam(self._online_params, lr=lr, fused=True)
         actor_params = list(self.actor.parameters()) + ([] if self.shared else list(self.actor_enc.parameters()))
-        self.pi_opt = torch.optim.Adam(actor_params, lr=lr, foreach=True)
-        self.alpha_opt = torch.optim.Adam([self.log_alpha], lr=lr)
+        self.pi_opt = torch.optim.Adam(actor_params, lr=lr, fused=True)
+        self.alpha_opt = torch.optim.Adam([self.log_alpha], lr=lr, fused=True)
 
     def act(self, obs, deterministic=False):
         """One env observation (unbatched dict) -> action (6,) in [-1, 1]."""

@@ -39,7 +39,7 @@ def strip_flag(argv, flag):
 
 
 def seed_commands(seeds, argv, cores=None):
-    """How many processes at once, and (seed, run dir, command line) for each seed; argv: tacrl.py's
+    """How many processes at once, and (seed, run dir, command line, environment) for each seed; argv: tacrl.py's
     flags. Each seed's own command line is checked as tacrl.py will check it (its run dir must be new
     or empty) before any run starts."""
     given = cli.parse(tacrl.Config, argv, "")        # the flags as typed, checked below with each seed
@@ -51,12 +51,14 @@ def seed_commands(seeds, argv, cores=None):
     cores = cores or os.cpu_count() or 1
     parallel = min(len(seeds), cores)
     stem = re.sub(r"-s\d+$", "", given.get("run_dir") or tacrl.default_run_dir(tacrl.Config(**given)))
-    jobs = []
+    threads = given.get("threads") or max(1, cores // parallel)     # threads x processes <= cores
+    cli.warn_oversubscribed("seeds", threads, parallel, cores)
+    env = {**os.environ, **{k: str(threads) for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}}
+    jobs = []                                        # (numpy's BLAS and OpenMP get torch's thread count too)
     for s in seeds:
-        cmd = base + ["--seed", str(s), "--run-dir", f"{stem}-s{s}",
-                      "--threads", str(given.get("threads") or max(1, cores // parallel))]
+        cmd = base + ["--seed", str(s), "--run-dir", f"{stem}-s{s}", "--threads", str(threads)]
         cfg = tacrl.parse_args(cmd)              # a bad seed, or a run dir that holds a run: before anything starts
-        jobs.append((s, cfg.run_dir, [sys.executable, os.path.abspath(tacrl.__file__), *cmd]))
+        jobs.append((s, cfg.run_dir, [sys.executable, os.path.abspath(tacrl.__file__), *cmd], env))
     return parallel, jobs
 
 
@@ -67,15 +69,15 @@ def train_seeds(seeds, argv):
     todo, running, failed, t0, shown = list(jobs), {}, [], time.time(), 0.0
     while todo or running:
         while todo and len(running) < parallel:
-            s, run_dir, cmd = todo.pop(0)
+            s, run_dir, cmd, env = todo.pop(0)
             os.makedirs(run_dir, exist_ok=True)
-            with open(os.path.join(run_dir, tacrl.LOG), "a") as log:
-                running[s] = (subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT), run_dir)
-            print(f"seed {s}: started, {run_dir}/{tacrl.LOG}", flush=True)
+            with open(os.path.join(run_dir, cli.LOG), "a") as log:
+                running[s] = (subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, env=env), run_dir)
+            print(f"seed {s}: started, {run_dir}/{cli.LOG}", flush=True)
         time.sleep(1)
         status = []
         for s, (proc, run_dir) in list(running.items()):
-            with open(os.path.join(run_dir, tacrl.LOG)) as f:
+            with open(os.path.join(run_dir, cli.LOG)) as f:
                 last = [ln for ln in f.read().splitlines() if ln.startswith("ep ")]
             status.append(f"s{s} {last[-1].split()[1] if last else '-'}")
             if proc.poll() is not None:
@@ -89,7 +91,7 @@ def train_seeds(seeds, argv):
     if failed:
         raise cli.Failed(f"the runs of seed{'s' * (len(failed) > 1)} {', '.join(str(s) for s, _ in failed)} failed "
                          f"(exit code{'s' * (len(failed) > 1)} {', '.join(str(c) for _, c in failed)}): see their "
-                         f"{tacrl.LOG}")
+                         f"{cli.LOG}")
 
 
 def parse_seeds(text):

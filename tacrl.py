@@ -4,8 +4,7 @@ evaluation of its Tables 1-2. The residual TA-MRP (policy.py) learns F_d on top 
 (control.py, sim.py) while the adaptive curriculum of Eq. 16 (curriculum.py) widens the error range:
 
     python tacrl.py --task peg                            # train, then evaluate at 5/10/15/20 mm
-    python tacrl.py --resume runs/peg-ts-ptv-adaptive-s0  # continue after Ctrl-C or a crash
-    python tacrl.py --resume runs/peg-ts-ptv-adaptive-s0 --train-episodes 400   # extend a finished run
+    python tacrl.py --resume runs/peg-ts-ptv-adaptive-s0  # continue (with --train-episodes N: extend)
     python tacrl.py --task peg --eval runs/peg-ts-ptv-adaptive-s0/policy.pt --error-mm 20
     python tacrl.py --task peg --eval initial --error-mm 0      # the hand-designed policy alone
     python tacrl.py --task peg --eval two-step --error-mm 20    # the classical baseline (baselines.py)
@@ -38,51 +37,59 @@ import cli  # noqa: E402
 from cli import ArgError, opt  # noqa: E402
 
 
+def train_opt(*args, **kw):                       # a flag for training only (refused with --eval)
+    return opt(*args, mode="train", **kw)
+
+
 @dataclass
 class Config:
     # what to run
     task: str = opt("peg", "peg (16 mm peg, 0.1 mm clearance) or gear (Sec. 5.1.1)", ("peg", "gear"))
     eval: str = opt("", "evaluate, not train: initial (F_d = 0), two-step (baselines.py) or a policy.pt")
-    resume: str = opt("", "continue the run in this directory as its config.json says", mode="train")
-    seed: int = opt(0, "seeds the errors, the networks and the replay sampling (0 .. 2^31 - 1)")
+    resume: str = train_opt("", "continue the run in this directory as its config.json says")
+    seed: int = opt(0, "seeds the errors, the networks and the replay sampling", bounds=(0, 2 ** 31 - 1))
     # the task (Sec. 5.1.1)
-    error_mm: float = opt(20.0, "error range E_r in mm (Eq. 13-15), 0..30: evaluated, or the curriculum's final one")
+    error_mm: float = opt(20.0, "error range E_r in mm (Eq. 13-15): evaluated, or the curriculum's final one",
+                          bounds=(0.0, 30.0))
     context: str = opt("train", "board location and background (Sec. 5.1.4)", tuple(sim.CONTEXTS))
     roi: str = opt("task", "image window: task (Eq. 11's task attention) or a window of Fig. 11",
                    ("task", *sim.ROI_PRESETS))
-    clearance_mm: float = opt(0.1, "diametral clearance of the peg or the gear's bore, mm")
+    clearance_mm: float = opt(0.1, "diametral clearance of the peg or the gear's bore, mm", bounds=(0.0, 2.0),
+                              open_bounds=True)
     # Algorithm 1 (training only)
-    train_episodes: int = opt(300, "max-episodes of Algorithm 1", mode="train")
-    obs: str = opt("ts-ptv", "observations (Fig. 9); v: the visual baseline", policy.OBS_KINDS, mode="train")
-    curriculum: str = opt("adaptive", "error curriculum (Eq. 16, Fig. 10); ex10: Fig. 9's", curriculum.KINDS, mode="train")
-    vanilla: bool = opt(False, "the vanilla baseline: no trajectory guidance, the residual acts alone", mode="train")
-    critic: str = opt("privileged", "privileged: also X - X_g (README difference 13)", ("privileged", "multimodal"),
-                      mode="train")
-    updates: int = opt(200, "SAC gradient steps after each episode (Sec. 5.1.1: 200)", mode="train")
-    warmup: int = opt(20, "episodes of random actions before the first update (the authors' loop: 20)", mode="train")
-    batch: int = opt(64, "SAC batch size", mode="train")
-    buffer: int = opt(50000, "replay capacity, transitions (at least an episode and a batch)", mode="train")
-    lr: float = opt(3e-4, "Adam step size of actor, critics and temperature", mode="train")
-    gamma: float = opt(0.95, "discount (0.99 let the critics thrash: README difference 10)", mode="train")
-    target_entropy: float = opt(-6.0, "SAC's entropy target (the usual -|A|)", mode="train")
-    eval_levels: str = opt("5,10,15,20", "error ranges (mm) evaluated after training (Table 2)", mode="train")
-    run_dir: str = opt("", "run directory, new or empty (default: runs/<task>-<obs>-...-s<seed>)", mode="train")
+    train_episodes: int = train_opt(300, "max-episodes of Algorithm 1: the most a run trains", bounds=(1, None))
+    stop_held: int = train_opt(30, "stop when learned: when the curriculum has held its final range this many "
+                                   "episodes and the success rate over 15 is --stop-sr or more (0: never)", bounds=(0, None))
+    stop_sr: float = train_opt(0.9, "the success rate over the last 15 that --stop-held asks for", bounds=(0, 1))
+    obs: str = train_opt("ts-ptv", "observations (Fig. 9); v: the visual baseline", policy.OBS_KINDS)
+    curriculum: str = train_opt("adaptive", "error curriculum (Eq. 16, Fig. 10); ex10: Fig. 9's", curriculum.KINDS)
+    vanilla: bool = train_opt(False, "the vanilla baseline: no trajectory guidance, the residual acts alone")
+    critic: str = train_opt("privileged", "privileged: also X - X_g (README difference 13)", ("privileged", "multimodal"))
+    updates: int = train_opt(200, "SAC gradient steps after each episode (Sec. 5.1.1: 200)", bounds=(0, None))
+    warmup: int = train_opt(20, "episodes of random actions before the first update (the authors' loop: 20)",
+                            bounds=(0, None))
+    batch: int = train_opt(64, "SAC batch size", bounds=(1, None))
+    buffer: int = train_opt(50000, "replay capacity, transitions (at least an episode and a batch)", bounds=(1, None))
+    lr: float = train_opt(3e-4, "Adam step size of actor, critics and temperature", bounds=(0, 1), open_bounds=True)
+    gamma: float = train_opt(0.95, "discount (0.99 let the critics thrash: README difference 10)", bounds=(0, 1),
+                             open_bounds=True)
+    target_entropy: float = train_opt(-6.0, "SAC's entropy target (the usual -|A|)")
+    eval_levels: str = train_opt("5,10,15,20", "error ranges (mm) evaluated after training (Table 2)")
+    run_dir: str = train_opt("", "run directory, new or empty (default: runs/<task>-<obs>-...-s<seed>)")
     # evaluation (Tables 1-2)
-    episodes: int = opt(20, "evaluation episodes a level (the paper: 20 test trials)")
+    episodes: int = opt(20, "evaluation episodes a level (the paper: 20 test trials)", bounds=(1, None))
     json: str = opt("", "also write the evaluation row to this new JSON file", mode="eval")
     video: str = opt("", "record the first evaluation episode from an external camera to this new .mp4", mode="eval")
     # the machine
     device: str = opt("auto", "where torch runs", ("auto", "cpu", "cuda"))
-    threads: int = opt(0, "torch CPU threads (0: torch's default, one a core)")
+    threads: int = opt(0, "torch CPU threads (0: torch's default, one a core)", bounds=(0, None))
     gui: bool = opt(False, "open the PyBullet window")
 
 
 EVAL_SEED = 1000             # evaluation episodes use seeds from EVAL_SEED + seed: never a training seed
 POSE_SCALE = np.array([sim.E_R_FINAL] * 3 + [sim.E_ROT_FINAL] * 3)   # m, rad: the encoders' pose units
-STATE_DIM = 7                # the privileged critics' obs['state'] (critic_state)
 BASELINES = ("initial", "two-step")
-RESUME_MAY_SET = ("resume", "train_episodes", "threads")     # a resumed run is the same run: nothing else changes
-LOG = "train.log"            # a run's console output, which seeds.py writes into its run dir
+RESUME_MAY_SET = ("resume", "train_episodes", "stop_held", "stop_sr", "threads")   # to extend; nothing else changes
 METRICS = ["episode", "return", "success", "sr15", "e_r_mm", "ex_r_mm", "delta", "steps", "total_steps", "updates",
            "q_loss", "pi_loss", "alpha", "entropy", "env_s", "update_s", "elapsed_s"]
 
@@ -102,7 +109,11 @@ def parse_args(argv):
         if others:
             raise ArgError(f"--resume continues a run as its config.json says: {', '.join(others)} cannot change "
                            f"it (--train-episodes N extends it)")
-        cfg = replace(load_config(given.pop("resume")), **given)   # with --train-episodes, --threads
+        run_dir = given.pop("resume")
+        cfg = replace(load_config(run_dir), **given)
+        if os.path.exists(os.path.join(run_dir, "eval.json")) and not set(given) - {"threads"}:
+            raise ArgError(f"--resume {run_dir!r}: the run is finished; extend it with --train-episodes N (and "
+                           f"--stop-held 0 to train past the point where it stopped as learned)")
     else:
         cfg = Config(**given)
     check(cfg)
@@ -111,10 +122,7 @@ def parse_args(argv):
 
 def check(cfg):
     """Every value, and every file the command will write, before any work starts."""
-    for name, least in {"episodes": 1, "train_episodes": 1, "batch": 1, "buffer": 1, "updates": 0, "warmup": 0,
-                        "threads": 0, "seed": 0}.items():
-        if getattr(cfg, name) < least:
-            raise ArgError(f"--{name.replace('_', '-')} must be at least {least}, not {getattr(cfg, name)}")
+    cli.check_bounds(cfg)
     try:
         levels = [float(x) for x in cfg.eval_levels.split(",")]
     except ValueError:
@@ -124,11 +132,6 @@ def check(cfg):
             (cfg.eval and cfg.eval not in BASELINES and not os.path.isfile(cfg.eval),
              f"--eval must be {', '.join(BASELINES)} or an existing policy.pt file, not {cfg.eval!r}"),
             (cfg.eval == "two-step" and cfg.task != "peg", "--eval two-step is the peg-in-hole baseline (Table 1)"),
-            (cfg.seed > 2 ** 31 - 1, f"--seed must be at most 2^31 - 1, not {cfg.seed}"),
-            (not 0.0 <= cfg.error_mm <= 30.0, f"--error-mm must be within 0..30, not {cfg.error_mm}"),
-            (not 0.0 < cfg.lr < 1.0, f"--lr must be within (0, 1), not {cfg.lr}"),
-            (not 0.0 < cfg.gamma < 1.0, f"--gamma must be within (0, 1), not {cfg.gamma}"),
-            (not 0.0 < cfg.clearance_mm <= 2.0, f"--clearance-mm must be within (0, 2], not {cfg.clearance_mm}"),
             (cfg.buffer < max(cfg.batch, sim.MAX_STEPS), f"--buffer {cfg.buffer} must hold an episode ({sim.MAX_STEPS} "
                                                          f"transitions) and a batch (--batch {cfg.batch})"),
             (cfg.video and not cfg.video.endswith(".mp4"), f"--video must name an .mp4 file, not {cfg.video!r}"),
@@ -139,6 +142,7 @@ def check(cfg):
             (cfg.gui and sim.display_problem(), f"--gui: {sim.display_problem()}")]:
         if bad:
             raise ArgError(msg)
+    cli.warn_oversubscribed("tacrl", cfg.threads)
     for name in [x for x in ("json", "video") if getattr(cfg, x)]:   # written after the work: checked before it
         cli.check_new_file(getattr(cfg, name), f"--{name}")
     if not cfg.eval:
@@ -148,7 +152,7 @@ def check(cfg):
         if not cfg.resume and "config.json" in left:
             raise ArgError(f"{cfg.run_dir!r} already holds a run: continue it with --resume {cfg.run_dir} "
                            f"or pick another --run-dir")
-        if not cfg.resume and set(left) - {LOG}:
+        if not cfg.resume and set(left) - {cli.LOG}:
             raise ArgError(f"--run-dir {cfg.run_dir!r} is not empty: a new run starts in a new or empty directory")
 
 
@@ -170,10 +174,10 @@ def read_config(run_dir):
 
 
 def load_config(run_dir):
-    if os.path.exists(run_dir) and not os.path.isdir(run_dir):
-        raise ArgError(f"--resume {run_dir!r} is a file, not a run directory")
     try:
         cfg = read_config(run_dir)
+    except NotADirectoryError:
+        raise ArgError(f"--resume {run_dir!r} is a file, not a run directory")
     except FileNotFoundError:
         raise ArgError(f"--resume {run_dir!r}: no config.json there (not a run directory)")
     except (OSError, ValueError) as e:              # a directory named config.json, bad JSON, a wrong type
@@ -182,26 +186,18 @@ def load_config(run_dir):
     return cfg
 
 
-def pick_device(name):
+def pick_device(name):                              # auto: cuda where there is one
     return ("cuda" if torch.cuda.is_available() else "cpu") if name == "auto" else name
-
-
-def critic_state(info):
-    """What the privileged critics read besides the last readings (STATE_DIM,): X - X_g (x, y over 5 mm, z over
-    25 mm, yaw over 0.025 rad), x and y through tanh(. / 1 mm) so that the last millimetre, where the chamfer
-    catches or misses, stands out, and the time over 24 s. Training knows X_g (Eq. 17 uses it); the actor does not."""
-    off = info["goal_offset"]
-    return np.array([off[0] / 0.005, off[1] / 0.005, off[2] / 0.025, off[3] / 0.025, np.tanh(off[0] / 0.001),
-                     np.tanh(off[1] / 0.001), info["t"] * sim.POLICY_HZ / sim.MAX_STEPS], np.float32)
 
 
 def make_sac(cfg, device):
     return policy.SAC(cfg.obs, POSE_SCALE, sim.F_MAX6, lr=cfg.lr, gamma=cfg.gamma, target_entropy=cfg.target_entropy,
-                      state_dim=STATE_DIM if cfg.critic == "privileged" else 0, device=device)
+                      state_dim=policy.STATE_DIM if cfg.critic == "privileged" else 0, device=device)
 
 
-def save_checkpoint(path, episode, total_steps, elapsed, sac, curr, env, sample_rng, buf):
-    policy.save_atomic({"episode": episode, "total_steps": total_steps, "elapsed": elapsed, "sac": sac.state_dict(),
+def save_checkpoint(path, episode, total_steps, elapsed, held, sac, curr, env, sample_rng, buf):
+    policy.save_atomic({"episode": episode, "total_steps": total_steps, "elapsed": elapsed, "held": held,
+                        "sac": sac.state_dict(),
                         "curriculum": json.dumps(curr.state_dict()), "replay": json.dumps(buf.state_dict()),
                         "env_rng": json.dumps(env.np_random.bit_generator.state),
                         "sample_rng": json.dumps(sample_rng.bit_generator.state), "torch_rng": torch.get_rng_state()},
@@ -209,7 +205,7 @@ def save_checkpoint(path, episode, total_steps, elapsed, sac, curr, env, sample_
 
 
 def load_checkpoint(path, device, sac, curr, env, sample_rng):
-    """Restore a checkpoint into the run's objects: (episode, total_steps, elapsed s, the replay's state)."""
+    """Restore a checkpoint into the run's objects: (episode, total_steps, elapsed s, held, the replay's state)."""
     try:
         ck = torch.load(path, map_location=device, weights_only=True)
         sac.load_state_dict(ck["sac"])
@@ -217,15 +213,14 @@ def load_checkpoint(path, device, sac, curr, env, sample_rng):
         env.np_random.bit_generator.state = json.loads(ck["env_rng"])
         sample_rng.bit_generator.state = json.loads(ck["sample_rng"])
         torch.set_rng_state(ck["torch_rng"])
-        return int(ck["episode"]), int(ck["total_steps"]), float(ck["elapsed"]), json.loads(ck["replay"])
+        return int(ck["episode"]), int(ck["total_steps"]), float(ck["elapsed"]), int(ck["held"]), json.loads(ck["replay"])
     except Exception as e:
         raise ArgError(f"--resume {os.path.dirname(path)!r}: ckpt.pt is damaged or does not match this run's "
                        f"config ({cli.describe(e)})")
 
 
 def eta_seconds(ep, cfg, env_s, update_s, probe_s):
-    """Time the episodes after `ep` (0-based) will take, s: each costs the mean env time so far and,
-    after the warm-up, the mean update phase so far (the probe's before there is one)."""
+    """Seconds the episodes after `ep` will take: the mean env time, plus after the warm-up an update phase."""
     left = cfg.train_episodes - ep - 1
     with_updates = left - max(0, min(left, cfg.warmup - ep - 1))
     return left * float(np.mean(env_s)) + with_updates * (float(np.mean(update_s)) if update_s else probe_s)
@@ -233,16 +228,16 @@ def eta_seconds(ep, cfg, env_s, update_s, probe_s):
 
 # ---------------------------------------------------------------- training (Algorithm 1)
 def rollout(env, act):
-    """Algorithm 1, line 9: one episode of the hybrid policy with the residual act(obs) -> a. Returns
-    (episode, return): the episode as the replay buffer takes it, T + 1 observations (with 'state',
-    the privileged critics' input, which the actor never reads), T actions, rewards and 'terminated'."""
+    """Algorithm 1, line 9: one episode with the residual act(obs) -> a, as the replay buffer takes it (T + 1
+    observations with the critics' 'state', which the actor never reads; T actions, rewards, ends), and its return."""
     obs, info = env.reset()
-    traj = {k: [v] for k, v in {**obs, "state": critic_state(info)}.items()}
+    state = lambda info: policy.critic_state(info["goal_offset"], info["t"] * sim.POLICY_HZ / sim.MAX_STEPS)  # noqa: E731
+    traj = {k: [v] for k, v in {**obs, "state": state(info)}.items()}
     acts, rews, terms, ret, done = [], [], [], 0.0, False
     while not done:
         a = act(obs)
         obs, r, term, trunc, info = env.step(a)
-        for k, v in {**obs, "state": critic_state(info)}.items():
+        for k, v in {**obs, "state": state(info)}.items():
             traj[k].append(v)
         acts.append(a)
         rews.append(r)
@@ -254,15 +249,15 @@ def rollout(env, act):
 
 
 def start_run(cfg, device, sac, curr, env, sample_rng, buf, log):
-    """A new run dir, or the one --resume continues, checked and restored: (episode, total_steps, elapsed s)."""
+    """A new or resumed run dir, checked and restored: (episode, total_steps, elapsed s, episodes held at E_final)."""
     ckpt, metrics = os.path.join(cfg.run_dir, "ckpt.pt"), os.path.join(cfg.run_dir, "metrics.csv")
-    start, total_steps, elapsed, finished, rows = 0, 0, 0.0, False, []
+    start, total_steps, elapsed, held, finished, rows = 0, 0, 0.0, 0, False, []
     if os.path.exists(ckpt):                         # else new, or stopped before its first episode was saved
-        start, total_steps, elapsed, replay = load_checkpoint(ckpt, device, sac, curr, env, sample_rng)
+        start, total_steps, elapsed, held, replay = load_checkpoint(ckpt, device, sac, curr, env, sample_rng)
         finished = os.path.exists(os.path.join(cfg.run_dir, "eval.json"))
-        if cfg.train_episodes < start or (finished and cfg.train_episodes == start):
-            raise ArgError(f"--resume {cfg.run_dir!r}: the run has {start} episodes{' and is finished' * finished}; "
-                           f"--train-episodes N with N > {start} extends it")
+        if cfg.train_episodes < start:
+            raise ArgError(f"--resume {cfg.run_dir!r}: the run has {start} episodes; --train-episodes "
+                           f"{cfg.train_episodes} is fewer")
         try:
             with open(metrics, newline="") as f:
                 reader = csv.DictReader(f)
@@ -287,7 +282,7 @@ def start_run(cfg, device, sac, curr, env, sample_rng, buf, log):
         log(f"resumed {cfg.run_dir} at episode {start} of {cfg.train_episodes}: networks, optimisers, curriculum "
             f"(E_r {curr.ranges()[0] * 1000:g} mm), random states, metrics.csv and the replay buffer ({len(buf)} "
             f"transitions)" + (f"; the finished run's files are now *-ep{start}.*" if finished else ""))
-    return start, total_steps, elapsed
+    return start, total_steps, elapsed, held
 
 
 def record(cfg, ep, ret, episode, env, curr, losses, total_steps, times):
@@ -322,12 +317,12 @@ def train(cfg, log=lambda msg: print(msg, flush=True)):
     curr = curriculum.Curriculum(cfg.curriculum, final=cfg.error_mm / 1000)
     sac = make_sac(cfg, device)
     shapes = {"image": (sim.IMG, sim.IMG), "pose_hist": (sim.HIST, 6), "wrench_hist": (sim.HIST, 6),
-              **({"state": (STATE_DIM,)} if cfg.critic == "privileged" else {})}     # what the buffer keeps
+              **({"state": (policy.STATE_DIM,)} if cfg.critic == "privileged" else {})}     # what the buffer keeps
     sample_rng = np.random.default_rng(cfg.seed + 1)
     try:
         os.makedirs(cfg.run_dir, exist_ok=True)
         buf = policy.ReplayBuffer(cfg.buffer, shapes, directory=os.path.join(cfg.run_dir, "replay"))
-        start, total_steps, elapsed0 = start_run(cfg, device, sac, curr, env, sample_rng, buf, log)
+        start, total_steps, elapsed0, held = start_run(cfg, device, sac, curr, env, sample_rng, buf, log)
         log(f"config: {asdict(cfg)}")
         log(f"parameters: {sac.parameter_counts()}; {device}, {torch.get_num_threads()} torch threads")
         probe_s, env_s, update_s = sac.update_seconds(shapes, cfg.batch) * cfg.updates, [], []
@@ -348,13 +343,18 @@ def train(cfg, log=lambda msg: print(msg, flush=True)):
                       for _ in range(cfg.updates if ep >= cfg.warmup else 0)]
             update_s += [time.time() - t0] if losses else []
             curr.update(bool(episode["term"][-1]))                     # line 11: generate the curriculum, Eq. 16
+            held = held + 1 if env.e_r >= curr.final - 1e-9 else 0     # episodes in a row at the final range
             elapsed = time.time() - t_start
             times = (env_s[-1], time.time() - t0, elapsed, eta_seconds(ep, cfg, env_s, update_s, probe_s))
             line = record(cfg, ep, ret, episode, env, curr, losses, total_steps, times)
-            save_checkpoint(os.path.join(cfg.run_dir, "ckpt.pt"), ep + 1, total_steps, elapsed, sac, curr, env,
+            save_checkpoint(os.path.join(cfg.run_dir, "ckpt.pt"), ep + 1, total_steps, elapsed, held, sac, curr, env,
                             sample_rng, buf)
             buf.prune()                              # only now: the last checkpoint still needed those files
             log(line)
+            if cfg.stop_held and held >= cfg.stop_held and curr.success_rate >= cfg.stop_sr:   # learned: stop
+                log(f"stopped as learned at episode {ep + 1}: the final range held {held} episodes, success rate "
+                    f"over 15 {curr.success_rate:.2f} (--stop-held 0 trains all {cfg.train_episodes})")
+                break
     except KeyboardInterrupt:
         raise KeyboardInterrupt(f"every finished episode is saved; continue with --resume {cfg.run_dir}")
     finally:
@@ -363,9 +363,8 @@ def train(cfg, log=lambda msg: print(msg, flush=True)):
 
 
 def finish(cfg, sac, curr, e_r_max, device, seconds, log):
-    """After the last episode: policy.pt (with what evaluation must know of training: its view and
-    guidance, the Ex_r it ended with, m, whose K of Eq. 9 it learned to push, and its env's e_r_max, m),
-    curves.png, and eval.json, the Table-2-style evaluation on seeds never used in training."""
+    """After the last episode: policy.pt (with its view, guidance, final Ex_r (m, the K of Eq. 9 it learned to
+    push) and env's e_r_max (m)), curves.png and eval.json, evaluated on seeds never used in training."""
     policy_path = os.path.join(cfg.run_dir, "policy.pt")
     policy.save_policy(policy_path, sac, {"task": cfg.task, "obs": cfg.obs, "roi": cfg.roi, "vanilla": cfg.vanilla,
                                           "ex_r": float(curr.ranges()[1]), "e_r_max": float(e_r_max)})
@@ -376,8 +375,10 @@ def finish(cfg, sac, curr, e_r_max, device, seconds, log):
     with eval_env(cfg.task, pi, cfg.context, cfg.roi, cfg.clearance_mm, gui=cfg.gui) as env:
         rows = evaluate_levels(env, pi, levels, cfg.episodes, EVAL_SEED + cfg.seed,
                                log=lambda row: log(format_row(f"TA-MRP {cfg.task} {row['error_mm']:g}mm", row)))
+    with open(os.path.join(cfg.run_dir, "metrics.csv")) as f:
+        trained = sum(1 for _ in f) - 1               # fewer than --train-episodes when it stopped as learned
     result = {"task": cfg.task, "obs": cfg.obs, "curriculum": cfg.curriculum, "context": cfg.context, "roi": cfg.roi,
-              "seed": cfg.seed, "eval_seed": EVAL_SEED + cfg.seed, "train_episodes": cfg.train_episodes,
+              "seed": cfg.seed, "eval_seed": EVAL_SEED + cfg.seed, "train_episodes": trained,
               "train_minutes": round(seconds / 60, 1), "rows": rows}
     with open(os.path.join(cfg.run_dir, "eval.json"), "w") as f:
         json.dump(result, f, indent=2)

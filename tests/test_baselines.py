@@ -1,5 +1,7 @@
 """The two-step baseline's parts (hole detection, calibration and visual servo), and the command lines
 of seeds.py."""
+import os
+
 import numpy as np
 import pytest
 
@@ -43,6 +45,16 @@ def test_seed_commands_one_run_dir_and_thread_share_per_seed():
     cmd = jobs[1][2]
     assert cmd.count("--seed") == 1 and cmd[cmd.index("--seed") + 1] == "1" and cmd[cmd.index("--threads") + 1] == "1"
     assert cmd[cmd.index("--train-episodes") + 1] == "5" and cmd[cmd.index("--task") + 1] == "gear"
+
+
+def test_seeds_never_ask_for_more_threads_than_cores_and_warn_where_the_user_does(capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    parallel, jobs = seeds.seed_commands([0, 1, 2], ["--task", "peg"], cores=2)   # 2 at a time, 1 thread each
+    assert parallel * int(jobs[0][2][jobs[0][2].index("--threads") + 1]) <= 2 and capsys.readouterr().err == ""
+    seeds.seed_commands([0, 1], ["--task", "peg", "--threads", "2"], cores=2)
+    assert capsys.readouterr().err.startswith("seeds: warning: 2 x 2 torch threads on 2 cores")
+    tacrl.parse_args(["--task", "peg", "--threads", str(2 * (os.cpu_count() or 1))])
+    assert "tacrl: warning:" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("argv", [[], ["--task", "peg"], ["0,x"], ["1,1"], ["0,1", "--task", "screw"],

@@ -94,7 +94,7 @@ def mistake(argv, here, capsys, main=tacrl.main, prog="tacrl"):
     # numbers that are not numbers, seeds out of range
     (["--lr", "nan"], "--lr: not a finite number"), (["--gamma", "inf"], "--gamma: not a finite number"),
     (["--error-mm", "-nan"], "--error-mm"), (["--clearance-mm", "1e999"], "--clearance-mm"),
-    (["--seed", "-1"], "--seed must be at least 0"), (["--seed", str(2 ** 40)], "--seed must be at most"),
+    (["--seed", "-1"], "--seed must be within 0..2147483647, not -1"), (["--seed", str(2 ** 40)], "--seed must be within 0..2147483647"),
     # a replay buffer smaller than an episode or a batch; evaluation levels the env does not cover
     (["--buffer", "29"], "--buffer 29 must hold an episode"), (["--buffer", "40", "--batch", "64"], "and a batch"),
     (["--eval-levels", "25"], "--eval-levels"),
@@ -159,12 +159,13 @@ def test_seeds_never_overwrite_a_run_and_check_every_seed_first(here, tmp_path, 
     assert cli.command("seeds", lambda: seeds.main(["0,1", *TINY, "--run-dir", "runs-s0"])) == 2
     assert "'runs-s1' already holds a run" in capsys.readouterr().err
     assert cli.command("seeds", lambda: seeds.main(["2,-3", *TINY])) == 2         # the bad one is found first
-    assert "--seed must be at least 0" in capsys.readouterr().err
+    assert "--seed must be within 0..2147483647, not -3" in capsys.readouterr().err
     assert snapshot(tmp_path) == before
 
 
 def test_seeds_exit_1_naming_the_seeds_whose_runs_failed(here, capsys, monkeypatch):
-    jobs = [(s, f"s{s}", [sys.executable, "-c", f"import sys; sys.exit({code})"]) for s, code in ((0, 0), (1, 3), (2, 1))]
+    jobs = [(s, f"s{s}", [sys.executable, "-c", f"import sys; sys.exit({code})"], None)
+            for s, code in ((0, 0), (1, 3), (2, 1))]
     monkeypatch.setattr(seeds, "seed_commands", lambda *a, **kw: (2, jobs))
     assert cli.command("seeds", lambda: seeds.main(["0,1,2", "--task", "peg"])) == 1
     err = capsys.readouterr().err

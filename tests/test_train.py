@@ -183,7 +183,7 @@ def test_behaviour_and_view_figures(tiny_run, tmp_path, monkeypatch):
 def test_a_finished_run_is_not_resumed_but_can_be_extended(tiny_run, tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(sim, "MAX_STEPS", SHORT)
     assert tacrl.main(["--resume", tiny_run["dir"]]) == 2
-    assert "is finished; --train-episodes N with N > 12 extends it" in capsys.readouterr().err
+    assert "the run is finished; extend it with --train-episodes N" in capsys.readouterr().err
     run_dir = str(tmp_path / "run")
     shutil.copytree(tiny_run["dir"], run_dir)
     assert tacrl.main(["--resume", run_dir, "--train-episodes", "13"]) == 0
@@ -192,6 +192,17 @@ def test_a_finished_run_is_not_resumed_but_can_be_extended(tiny_run, tmp_path, c
     for f in ("policy-ep12.pt", "eval-ep12.json", "curves-ep12.png", "policy.pt", "eval.json"):
         assert os.path.exists(os.path.join(run_dir, f)), f
     assert json.load(open(os.path.join(run_dir, "config.json")))["train_episodes"] == 13
+
+
+def test_a_run_stops_when_learned(tmp_path, monkeypatch):
+    # no curriculum: E_r is at its final range from the first episode, so with --stop-held 3 and a success
+    # rate of at least 0 the run stops after episode 3 of 12, and says so
+    monkeypatch.setattr(sim, "MAX_STEPS", SHORT)
+    lines = []
+    result = tacrl.train(tacrl.parse_args(TINY + ["--curriculum", "none", "--stop-held", "3", "--stop-sr", "0",
+                                                  "--run-dir", str(tmp_path / "run")]), log=lines.append)
+    assert [int(r["episode"]) for r in metrics(str(tmp_path / "run"))] == [1, 2, 3] and result["train_episodes"] == 3
+    assert any(x.startswith("stopped as learned at episode 3: the final range held 3 episodes") for x in lines)
 
 
 def test_the_eta_counts_the_updates_still_to_come_during_the_warmup():
