@@ -4,6 +4,7 @@ and exit code 1; Ctrl-C is one line and exit code 130. The files a command will 
 before any work starts, and none that the user already has is overwritten. Standard library only.
 """
 import argparse
+import csv
 import dataclasses
 import math
 import os
@@ -115,6 +116,25 @@ def warn_oversubscribed(prog, threads, processes=1, cores=None):
     if threads * processes > cores:
         print(f"{prog}: warning: {processes} x {threads} torch threads on {cores} cores: they will wait on each "
               f"other (use --threads {max(1, cores // processes)})", file=sys.stderr)
+
+
+def read_log(path, columns, upto):
+    """The first `upto` rows of a CSV log of numbered episodes (none for upto 0); ValueError where the log
+    has not got them all, in these columns."""
+    if not upto:
+        return []
+    with open(path, newline="") as f:
+        reader = csv.DictReader(f)
+        rows = [r for r in reader if int(r["episode"]) <= upto]
+    if reader.fieldnames != columns or [int(r["episode"]) for r in rows] != list(range(1, upto + 1)):
+        raise ValueError(f"{os.path.basename(path)}'s rows are not episodes 1-{upto} of this version's columns")
+    return rows
+
+
+def write_log(path, columns, rows):
+    with open(path, "w", newline="") as f:
+        csv.DictWriter(f, columns).writeheader()
+        csv.DictWriter(f, columns).writerows(rows)
 
 
 def fmt_time(s):

@@ -58,9 +58,8 @@ class Config:
                               open_bounds=True)
     # Algorithm 1 (training only)
     train_episodes: int = train_opt(300, "max-episodes of Algorithm 1: the most a run trains", bounds=(1, None))
-    stop_held: int = train_opt(30, "stop when learned: when the curriculum has held its final range this many "
-                                   "episodes and the success rate over 15 is --stop-sr or more (0: never)", bounds=(0, None))
-    stop_sr: float = train_opt(0.9, "the success rate over the last 15 that --stop-held asks for", bounds=(0, 1))
+    stop_held: int = train_opt(30, "stop when learned: from this many episodes at the final range on, every 10 the greedy "
+                                   "policy tries 20 there; 19 successes stop the run (0: never)", bounds=(0, None))
     obs: str = train_opt("ts-ptv", "observations (Fig. 9); v: the visual baseline", policy.OBS_KINDS)
     curriculum: str = train_opt("adaptive", "error curriculum (Eq. 16, Fig. 10); ex10: Fig. 9's", curriculum.KINDS)
     vanilla: bool = train_opt(False, "the vanilla baseline: no trajectory guidance, the residual acts alone")
@@ -89,7 +88,8 @@ class Config:
 EVAL_SEED = 1000             # evaluation episodes use seeds from EVAL_SEED + seed: never a training seed
 POSE_SCALE = np.array([sim.E_R_FINAL] * 3 + [sim.E_ROT_FINAL] * 3)   # m, rad: the encoders' pose units
 BASELINES = ("initial", "two-step")
-RESUME_MAY_SET = ("resume", "train_episodes", "stop_held", "stop_sr", "threads")   # to extend; nothing else changes
+RESUME_MAY_SET = ("resume", "train_episodes", "stop_held", "threads")   # to extend a run; nothing else changes
+VAL_SEED, VAL_EPISODES, VAL_WINS, VAL_EVERY = 2000, 20, 19, 10   # stop when learned: seeds apart, 19 of 20
 METRICS = ["episode", "return", "success", "sr15", "e_r_mm", "ex_r_mm", "delta", "steps", "total_steps", "updates",
            "q_loss", "pi_loss", "alpha", "entropy", "env_s", "update_s", "elapsed_s"]
 
@@ -145,6 +145,8 @@ def check(cfg):
     cli.warn_oversubscribed("tacrl", cfg.threads)
     for name in [x for x in ("json", "video") if getattr(cfg, x)]:   # written after the work: checked before it
         cli.check_new_file(getattr(cfg, name), f"--{name}")
+    if cfg.device == "auto":                        # cuda where there is one
+        cfg.device = "cuda" if torch.cuda.is_available() else "cpu"
     if not cfg.eval:
         cfg.run_dir = cfg.run_dir or default_run_dir(cfg)
         cli.check_dir_writable(cfg.run_dir, "--run-dir")
@@ -184,10 +186,6 @@ def load_config(run_dir):
         raise ArgError(f"--resume {run_dir!r}: config.json is unreadable ({cli.describe(e)})")
     cfg.run_dir, cfg.resume, cfg.eval = run_dir, run_dir, ""
     return cfg
-
-
-def pick_device(name):                              # auto: cuda where there is one
-    return ("cuda" if torch.cuda.is_available() else "cpu") if name == "auto" else name
 
 
 def make_sac(cfg, device):
@@ -251,28 +249,19 @@ def rollout(env, act):
 def start_run(cfg, device, sac, curr, env, sample_rng, buf, log):
     """A new or resumed run dir, checked and restored: (episode, total_steps, elapsed s, episodes held at E_final)."""
     ckpt, metrics = os.path.join(cfg.run_dir, "ckpt.pt"), os.path.join(cfg.run_dir, "metrics.csv")
-    start, total_steps, elapsed, held, finished, rows = 0, 0, 0.0, 0, False, []
+    start, total_steps, elapsed, held, finished, replay = 0, 0, 0.0, 0, False, {"i": 0, "n": 0, "files": []}
     if os.path.exists(ckpt):                         # else new, or stopped before its first episode was saved
         start, total_steps, elapsed, held, replay = load_checkpoint(ckpt, device, sac, curr, env, sample_rng)
         finished = os.path.exists(os.path.join(cfg.run_dir, "eval.json"))
         if cfg.train_episodes < start:
             raise ArgError(f"--resume {cfg.run_dir!r}: the run has {start} episodes; --train-episodes "
                            f"{cfg.train_episodes} is fewer")
-        try:
-            with open(metrics, newline="") as f:
-                reader = csv.DictReader(f)
-                rows = [r for r in reader if int(r["episode"]) <= start]
-            if reader.fieldnames != METRICS or [int(r["episode"]) for r in rows] != list(range(1, start + 1)):
-                raise ValueError(f"its rows are not episodes 1-{start} of this version's columns")
-        except (OSError, ValueError, KeyError, TypeError) as e:
-            raise ArgError(f"--resume {cfg.run_dir!r}: cannot continue the run: {cli.describe(e)}")
-    try:
-        buf.restore(replay if start else {"i": 0, "n": 0, "files": []})   # and delete what no checkpoint holds
-    except ValueError as e:
+    try:                                             # what the checkpoint holds; what it has not got goes
+        rows = cli.read_log(metrics, METRICS, start)
+        buf.restore(replay)                          # (it checks its files before it deletes any)
+    except (OSError, ValueError, KeyError, TypeError) as e:
         raise ArgError(f"--resume {cfg.run_dir!r}: cannot continue the run: {cli.describe(e)}")
-    with open(metrics, "w", newline="") as f:        # without the row of an episode the checkpoint has not got
-        csv.DictWriter(f, METRICS).writeheader()
-        csv.DictWriter(f, METRICS).writerows(rows)
+    cli.write_log(metrics, METRICS, rows)
     for name in ("policy.pt", "eval.json", "curves.png") if finished else ():   # extended: keep what it wrote
         os.replace(os.path.join(cfg.run_dir, name), os.path.join(cfg.run_dir, name.replace(".", f"-ep{start}.")))
     if not start or finished:
@@ -303,7 +292,7 @@ def record(cfg, ep, ret, episode, env, curr, losses, total_steps, times):
 
 def train(cfg, log=lambda msg: print(msg, flush=True)):
     """Algorithm 1: learning context-generalized TA-MRP with ACRRL. Returns eval.json's contents."""
-    device = pick_device(cfg.device)
+    device = cfg.device
     if cfg.threads:
         torch.set_num_threads(cfg.threads)
     torch.manual_seed(cfg.seed)
@@ -351,15 +340,25 @@ def train(cfg, log=lambda msg: print(msg, flush=True)):
                             sample_rng, buf)
             buf.prune()                              # only now: the last checkpoint still needed those files
             log(line)
-            if cfg.stop_held and held >= cfg.stop_held and curr.success_rate >= cfg.stop_sr:   # learned: stop
-                log(f"stopped as learned at episode {ep + 1}: the final range held {held} episodes, success rate "
-                    f"over 15 {curr.success_rate:.2f} (--stop-held 0 trains all {cfg.train_episodes})")
-                break
+            if cfg.stop_held and held >= cfg.stop_held and (held - cfg.stop_held) % VAL_EVERY == 0:   # learned?
+                wins = validate(cfg, sac, curr, env.e_r_max)
+                log(f"validation at episode {ep + 1}: the greedy policy inserted {wins} of {VAL_EPISODES} at {cfg.error_mm:g} "
+                    f"mm" + (f"; stopped as learned (--stop-held 0 trains all {cfg.train_episodes})" * (wins >= VAL_WINS)))
+                if wins >= VAL_WINS:
+                    break
     except KeyboardInterrupt:
         raise KeyboardInterrupt(f"every finished episode is saved; continue with --resume {cfg.run_dir}")
     finally:
         env.close()
     return finish(cfg, sac, curr, env.e_r_max, device, time.time() - t_start, log)
+
+
+def validate(cfg, sac, curr, e_r_max):
+    """Greedy successes at the final range, in a new env, on seeds apart from training's and evaluation's."""
+    with sim.AssemblyEnv(cfg.task, cfg.context, e_r=curr.final, ex_r=curr.ranges()[1], roi=cfg.roi, e_r_max=e_r_max,
+                         clearance=cfg.clearance_mm / 1000, trajectory=not cfg.vanilla) as env:
+        return sum(sim.run_episode(env, lambda obs: sac.act(obs, deterministic=True),
+                                   seed=(VAL_SEED + cfg.seed) * 100003 + k)[0] for k in range(VAL_EPISODES))
 
 
 def finish(cfg, sac, curr, e_r_max, device, seconds, log):
@@ -457,7 +456,7 @@ def format_row(name, row):
 
 def run_evaluation(cfg):
     """--eval: a policy.pt, the hand-designed policy alone or the two-step baseline, at --error-mm."""
-    pi = None if cfg.eval in BASELINES else load_policy(cfg.eval, cfg.task, pick_device(cfg.device))
+    pi = None if cfg.eval in BASELINES else load_policy(cfg.eval, cfg.task, cfg.device)
     if pi is not None and pi.meta["roi"] != cfg.roi:      # its encoder learned that view, not another
         raise ArgError(f"--eval {cfg.eval!r}: this policy was trained with --roi {pi.meta['roi']}, not {cfg.roi}")
     if pi is not None and cfg.error_mm > pi.meta["e_r_max"] * 1000 + 1e-6:   # Eq. 11's ROI would widen

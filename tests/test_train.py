@@ -194,15 +194,20 @@ def test_a_finished_run_is_not_resumed_but_can_be_extended(tiny_run, tmp_path, c
     assert json.load(open(os.path.join(run_dir, "config.json")))["train_episodes"] == 13
 
 
-def test_a_run_stops_when_learned(tmp_path, monkeypatch):
-    # no curriculum: E_r is at its final range from the first episode, so with --stop-held 3 and a success
-    # rate of at least 0 the run stops after episode 3 of 12, and says so
+def test_a_run_stops_when_the_greedy_policy_passes_validation(tmp_path, monkeypatch):
+    # no curriculum: E_r is at its final range from the first episode, so with --stop-held 3 the greedy
+    # policy is validated after episode 3 and every 10 after (here 2 episodes, passed by 0 successes or more)
     monkeypatch.setattr(sim, "MAX_STEPS", SHORT)
-    lines = []
-    result = tacrl.train(tacrl.parse_args(TINY + ["--curriculum", "none", "--stop-held", "3", "--stop-sr", "0",
-                                                  "--run-dir", str(tmp_path / "run")]), log=lines.append)
-    assert [int(r["episode"]) for r in metrics(str(tmp_path / "run"))] == [1, 2, 3] and result["train_episodes"] == 3
-    assert any(x.startswith("stopped as learned at episode 3: the final range held 3 episodes") for x in lines)
+    monkeypatch.setattr(tacrl, "VAL_EPISODES", 2)
+    runs = {}
+    for wins in (3, 0):                       # 3 of 2 never passes: the run trains all 12 episodes
+        monkeypatch.setattr(tacrl, "VAL_WINS", wins)
+        lines = []
+        result = tacrl.train(tacrl.parse_args(TINY + ["--curriculum", "none", "--stop-held", "3", "--run-dir",
+                                                      str(tmp_path / f"w{wins}")]), log=lines.append)
+        runs[wins] = (result["train_episodes"], [x for x in lines if x.startswith("validation")])
+    assert runs[3][0] == 12 and [x.split()[3] for x in runs[3][1]] == ["3:"]   # at 3 (the next, 13, is past the end)
+    assert runs[0][0] == 3 and runs[0][1][0].endswith("stopped as learned (--stop-held 0 trains all 12)")
 
 
 def test_the_eta_counts_the_updates_still_to_come_during_the_warmup():
