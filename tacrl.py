@@ -58,8 +58,8 @@ class Config:
                               open_bounds=True)
     # Algorithm 1 (training only)
     train_episodes: int = train_opt(300, "max-episodes of Algorithm 1: the most a run trains", bounds=(1, None))
-    stop_held: int = train_opt(30, "stop when learned: from this many episodes at the final range on, every 10 the greedy "
-                                   "policy tries 20 there; 19 successes stop the run (0: never)", bounds=(0, None))
+    stop_held: int = train_opt(30, "stop when learned: after this many episodes at the final range, every 10 the greedy "
+                                   "policy tries 20 there; 19 wins twice in a row stop the run (0: never)", bounds=(0, None))
     obs: str = train_opt("ts-ptv", "observations (Fig. 9); v: the visual baseline", policy.OBS_KINDS)
     curriculum: str = train_opt("adaptive", "error curriculum (Eq. 16, Fig. 10); ex10: Fig. 9's", curriculum.KINDS)
     vanilla: bool = train_opt(False, "the vanilla baseline: no trajectory guidance, the residual acts alone")
@@ -89,7 +89,7 @@ EVAL_SEED = 1000             # evaluation episodes use seeds from EVAL_SEED + se
 POSE_SCALE = np.array([sim.E_R_FINAL] * 3 + [sim.E_ROT_FINAL] * 3)   # m, rad: the encoders' pose units
 BASELINES = ("initial", "two-step")
 RESUME_MAY_SET = ("resume", "train_episodes", "stop_held", "threads")   # to extend a run; nothing else changes
-VAL_SEED, VAL_EPISODES, VAL_WINS, VAL_EVERY = 2000, 20, 19, 10   # stop when learned: seeds apart, 19 of 20
+VAL_SEED, VAL_EPISODES, VAL_WINS, VAL_EVERY, VAL_PASSES = 2000, 20, 19, 10, 2   # stop when learned: 19 of 20 twice
 METRICS = ["episode", "return", "success", "sr15", "e_r_mm", "ex_r_mm", "delta", "steps", "total_steps", "updates",
            "q_loss", "pi_loss", "alpha", "entropy", "env_s", "update_s", "elapsed_s"]
 
@@ -193,8 +193,8 @@ def make_sac(cfg, device):
                       state_dim=policy.STATE_DIM if cfg.critic == "privileged" else 0, device=device)
 
 
-def save_checkpoint(path, episode, total_steps, elapsed, held, sac, curr, env, sample_rng, buf):
-    policy.save_atomic({"episode": episode, "total_steps": total_steps, "elapsed": elapsed, "held": held,
+def save_checkpoint(path, episode, total_steps, elapsed, stop, sac, curr, env, sample_rng, buf):
+    policy.save_atomic({"episode": episode, "total_steps": total_steps, "elapsed": elapsed, "stop": list(stop),
                         "sac": sac.state_dict(),
                         "curriculum": json.dumps(curr.state_dict()), "replay": json.dumps(buf.state_dict()),
                         "env_rng": json.dumps(env.np_random.bit_generator.state),
@@ -203,7 +203,8 @@ def save_checkpoint(path, episode, total_steps, elapsed, held, sac, curr, env, s
 
 
 def load_checkpoint(path, device, sac, curr, env, sample_rng):
-    """Restore a checkpoint into the run's objects: (episode, total_steps, elapsed s, held, the replay's state)."""
+    """Restore a checkpoint into the run's objects: (episode, total_steps, elapsed s, (episodes at E_final,
+    validations passed in a row), the replay's state)."""
     try:
         ck = torch.load(path, map_location=device, weights_only=True)
         sac.load_state_dict(ck["sac"])
@@ -211,7 +212,7 @@ def load_checkpoint(path, device, sac, curr, env, sample_rng):
         env.np_random.bit_generator.state = json.loads(ck["env_rng"])
         sample_rng.bit_generator.state = json.loads(ck["sample_rng"])
         torch.set_rng_state(ck["torch_rng"])
-        return int(ck["episode"]), int(ck["total_steps"]), float(ck["elapsed"]), int(ck["held"]), json.loads(ck["replay"])
+        return int(ck["episode"]), int(ck["total_steps"]), float(ck["elapsed"]), tuple(ck["stop"]), json.loads(ck["replay"])
     except Exception as e:
         raise ArgError(f"--resume {os.path.dirname(path)!r}: ckpt.pt is damaged or does not match this run's "
                        f"config ({cli.describe(e)})")
@@ -247,11 +248,11 @@ def rollout(env, act):
 
 
 def start_run(cfg, device, sac, curr, env, sample_rng, buf, log):
-    """A new or resumed run dir, checked and restored: (episode, total_steps, elapsed s, episodes held at E_final)."""
+    """A new or resumed run dir, checked and restored: (episode, total_steps, elapsed s, stop-rule state)."""
     ckpt, metrics = os.path.join(cfg.run_dir, "ckpt.pt"), os.path.join(cfg.run_dir, "metrics.csv")
-    start, total_steps, elapsed, held, finished, replay = 0, 0, 0.0, 0, False, {"i": 0, "n": 0, "files": []}
+    start, total_steps, elapsed, stop, finished, replay = 0, 0, 0.0, (0, 0), False, {"i": 0, "n": 0, "files": []}
     if os.path.exists(ckpt):                         # else new, or stopped before its first episode was saved
-        start, total_steps, elapsed, held, replay = load_checkpoint(ckpt, device, sac, curr, env, sample_rng)
+        start, total_steps, elapsed, stop, replay = load_checkpoint(ckpt, device, sac, curr, env, sample_rng)
         finished = os.path.exists(os.path.join(cfg.run_dir, "eval.json"))
         if cfg.train_episodes < start:
             raise ArgError(f"--resume {cfg.run_dir!r}: the run has {start} episodes; --train-episodes "
@@ -262,7 +263,8 @@ def start_run(cfg, device, sac, curr, env, sample_rng, buf, log):
     except (OSError, ValueError, KeyError, TypeError) as e:
         raise ArgError(f"--resume {cfg.run_dir!r}: cannot continue the run: {cli.describe(e)}")
     cli.write_log(metrics, METRICS, rows)
-    for name in ("policy.pt", "eval.json", "curves.png") if finished else ():   # extended: keep what it wrote
+    stop = (stop[0], 0) if finished else stop         # extended: validate anew, and keep what it wrote
+    for name in ("policy.pt", "eval.json", "curves.png") if finished else ():
         os.replace(os.path.join(cfg.run_dir, name), os.path.join(cfg.run_dir, name.replace(".", f"-ep{start}.")))
     if not start or finished:
         with open(os.path.join(cfg.run_dir, "config.json"), "w") as f:
@@ -271,7 +273,7 @@ def start_run(cfg, device, sac, curr, env, sample_rng, buf, log):
         log(f"resumed {cfg.run_dir} at episode {start} of {cfg.train_episodes}: networks, optimisers, curriculum "
             f"(E_r {curr.ranges()[0] * 1000:g} mm), random states, metrics.csv and the replay buffer ({len(buf)} "
             f"transitions)" + (f"; the finished run's files are now *-ep{start}.*" if finished else ""))
-    return start, total_steps, elapsed, held
+    return start, total_steps, elapsed, stop
 
 
 def record(cfg, ep, ret, episode, env, curr, losses, total_steps, times):
@@ -292,28 +294,25 @@ def record(cfg, ep, ret, episode, env, curr, losses, total_steps, times):
 
 def train(cfg, log=lambda msg: print(msg, flush=True)):
     """Algorithm 1: learning context-generalized TA-MRP with ACRRL. Returns eval.json's contents."""
-    device = cfg.device
-    if cfg.threads:
-        torch.set_num_threads(cfg.threads)
+    torch.set_num_threads(cfg.threads or torch.get_num_threads())
     torch.manual_seed(cfg.seed)
-    # Lines 1-5, initialize the learning architecture: the env holds the hand-designed part of the
-    # skill (2: tau(t) and K, Eq. 8-9, 14), the error range E_r (3), the ROI for E_r (4: Eq. 11, at
-    # the largest range) and the reward (5: Eq. 17-18)
+    # Lines 1-5, initialize the learning architecture: the env holds the hand-designed part of the skill (2: tau(t)
+    # and K, Eq. 8-9, 14), the error range E_r (3), the ROI for E_r (4: Eq. 11, at the largest) and the reward (5)
     env = sim.AssemblyEnv(cfg.task, cfg.context, roi=cfg.roi, clearance=cfg.clearance_mm / 1000, gui=cfg.gui,
                           trajectory=not cfg.vanilla, e_r_max=cfg.error_mm / 1000)
     env.np_random = np.random.default_rng(cfg.seed)
     # line 6: the curriculum's parameters for E_r (Eq. 16)
     curr = curriculum.Curriculum(cfg.curriculum, final=cfg.error_mm / 1000)
-    sac = make_sac(cfg, device)
+    sac = make_sac(cfg, cfg.device)
     shapes = {"image": (sim.IMG, sim.IMG), "pose_hist": (sim.HIST, 6), "wrench_hist": (sim.HIST, 6),
               **({"state": (policy.STATE_DIM,)} if cfg.critic == "privileged" else {})}     # what the buffer keeps
     sample_rng = np.random.default_rng(cfg.seed + 1)
     try:
         os.makedirs(cfg.run_dir, exist_ok=True)
         buf = policy.ReplayBuffer(cfg.buffer, shapes, directory=os.path.join(cfg.run_dir, "replay"))
-        start, total_steps, elapsed0, held = start_run(cfg, device, sac, curr, env, sample_rng, buf, log)
+        start, total_steps, elapsed0, (held, passes) = start_run(cfg, cfg.device, sac, curr, env, sample_rng, buf, log)
         log(f"config: {asdict(cfg)}")
-        log(f"parameters: {sac.parameter_counts()}; {device}, {torch.get_num_threads()} torch threads")
+        log(f"parameters: {sac.parameter_counts()}; {cfg.device}, {torch.get_num_threads()} torch threads")
         probe_s, env_s, update_s = sac.update_seconds(shapes, cfg.batch) * cfg.updates, [], []
         t_start = time.time() - elapsed0
         # Lines 7-12, learn the residual TA-MRP
@@ -333,37 +332,39 @@ def train(cfg, log=lambda msg: print(msg, flush=True)):
             update_s += [time.time() - t0] if losses else []
             curr.update(bool(episode["term"][-1]))                     # line 11: generate the curriculum, Eq. 16
             held = held + 1 if env.e_r >= curr.final - 1e-9 else 0     # episodes in a row at the final range
+            if cfg.stop_held and held >= cfg.stop_held and (held - cfg.stop_held) % VAL_EVERY == 0:   # learned?
+                wins = validate(cfg, sac, curr, env.e_r_max)
+                passes = passes + 1 if wins >= VAL_WINS else 0
+                log(f"validation at episode {ep + 1}: the greedy policy inserted {wins} of {VAL_EPISODES} at "
+                    f"{cfg.error_mm:g} mm ({passes} of {VAL_PASSES} passes in a row)")
             elapsed = time.time() - t_start
             times = (env_s[-1], time.time() - t0, elapsed, eta_seconds(ep, cfg, env_s, update_s, probe_s))
             line = record(cfg, ep, ret, episode, env, curr, losses, total_steps, times)
-            save_checkpoint(os.path.join(cfg.run_dir, "ckpt.pt"), ep + 1, total_steps, elapsed, held, sac, curr, env,
-                            sample_rng, buf)
+            save_checkpoint(os.path.join(cfg.run_dir, "ckpt.pt"), ep + 1, total_steps, elapsed, (held, passes), sac,
+                            curr, env, sample_rng, buf)
             buf.prune()                              # only now: the last checkpoint still needed those files
             log(line)
-            if cfg.stop_held and held >= cfg.stop_held and (held - cfg.stop_held) % VAL_EVERY == 0:   # learned?
-                wins = validate(cfg, sac, curr, env.e_r_max)
-                log(f"validation at episode {ep + 1}: the greedy policy inserted {wins} of {VAL_EPISODES} at {cfg.error_mm:g} "
-                    f"mm" + (f"; stopped as learned (--stop-held 0 trains all {cfg.train_episodes})" * (wins >= VAL_WINS)))
-                if wins >= VAL_WINS:
-                    break
+            if passes >= VAL_PASSES:
+                log(f"stopped as learned at episode {ep + 1} (--stop-held 0 trains all {cfg.train_episodes})")
+                break
     except KeyboardInterrupt:
         raise KeyboardInterrupt(f"every finished episode is saved; continue with --resume {cfg.run_dir}")
     finally:
         env.close()
-    return finish(cfg, sac, curr, env.e_r_max, device, time.time() - t_start, log)
+    return finish(cfg, sac, curr, env.e_r_max, cfg.device, time.time() - t_start, log)
 
 
 def validate(cfg, sac, curr, e_r_max):
     """Greedy successes at the final range, in a new env, on seeds apart from training's and evaluation's."""
     with sim.AssemblyEnv(cfg.task, cfg.context, e_r=curr.final, ex_r=curr.ranges()[1], roi=cfg.roi, e_r_max=e_r_max,
                          clearance=cfg.clearance_mm / 1000, trajectory=not cfg.vanilla) as env:
-        return sum(sim.run_episode(env, lambda obs: sac.act(obs, deterministic=True),
-                                   seed=(VAL_SEED + cfg.seed) * 100003 + k)[0] for k in range(VAL_EPISODES))
+        row = evaluate(env, lambda obs: sac.act(obs, deterministic=True), VAL_EPISODES, VAL_SEED + cfg.seed,
+                       log=lambda *_: None)
+    return round(row["success_rate"] * VAL_EPISODES)
 
 
 def finish(cfg, sac, curr, e_r_max, device, seconds, log):
-    """After the last episode: policy.pt (with its view, guidance, final Ex_r (m, the K of Eq. 9 it learned to
-    push) and env's e_r_max (m)), curves.png and eval.json, evaluated on seeds never used in training."""
+    """policy.pt (with what evaluation must know of training), curves.png and eval.json: held-out seeds."""
     policy_path = os.path.join(cfg.run_dir, "policy.pt")
     policy.save_policy(policy_path, sac, {"task": cfg.task, "obs": cfg.obs, "roi": cfg.roi, "vanilla": cfg.vanilla,
                                           "ex_r": float(curr.ranges()[1]), "e_r_max": float(e_r_max)})
