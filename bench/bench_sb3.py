@@ -3,16 +3,18 @@
 the same adaptive curriculum (Eq. 16) between episodes, for the same wall time.
 
     pip install stable-baselines3                # optional: never needed by tacrl, never in CI
-    python bench/bench_sb3.py [--seed 0] [--threads 2]
+    python bench/bench_sb3.py [--seed 0] [--threads 2] [--ours RUN_DIR]
 
 1. Ours: `python tacrl.py --task peg --seed S` as the quickstart runs it (it stops when learned), in a
-   new run dir under bench/runs/.
+   new run dir under bench/runs/, or a finished run of it given with --ours (its metrics.csv and
+   eval.json; then only SB3 trains).
 2. SB3: SAC("MultiInputPolicy") with its defaults (batch 256, one update per env step, gamma 0.99, its
    CNN on the image, given as 1 x 80 x 80), the replay buffer ours has (50,000: its default million
    would not fit), trained for the wall time ours took.
 Both then act deterministically at 20 mm on the same held-out seeds (tacrl.evaluate, seeds from
-EVAL_SEED + S). For each it prints the minutes to the stopping criterion of tacrl.py (the final 20 mm
-range held for 30 episodes with a success rate over 15 of at least 0.9) and the success rate at 20 mm.
+EVAL_SEED + S). For each it prints the minutes until its training curve first showed SR >= 0.9 at
+20 mm (the curriculum at its final 20 mm range for 30 episodes, with a success rate over the last 15
+of at least 0.9: one rule read off both logs) and the success rate at 20 mm.
 Run it alone on the machine: the two trainings run one after the other, each on --threads threads.
 """
 import argparse
@@ -31,7 +33,7 @@ import curriculum  # noqa: E402
 import sim  # noqa: E402
 import tacrl  # noqa: E402
 
-HELD, SR = tacrl.Config.stop_held, tacrl.Config.stop_sr         # tacrl.py's stopping criterion
+HELD, SR = 30, 0.9            # "SR >= 0.9 at 20 mm" on a training curve: 30 episodes at 20 mm, sr15 >= 0.9
 
 
 class SameTask(gym.Wrapper):
@@ -78,18 +80,20 @@ def minutes_to_criterion(episodes):
     return None
 
 
-def run_ours(seed, threads, root):
-    run_dir = os.path.join(root, f"ours-s{seed}")
-    cfg = tacrl.parse_args(["--task", "peg", "--seed", str(seed), "--threads", str(threads), "--run-dir", run_dir])
-    t0 = time.time()
-    shown = ("stopped", "TA-MRP")
-    result = tacrl.train(cfg, log=lambda msg: print("  ours:", msg, flush=True) if msg.startswith(shown) else None)
-    seconds = time.time() - t0
+def run_ours(seed, threads, root, run_dir=None):
+    """Trains ours (or reads the finished run in run_dir): its minutes, episodes and row at 20 mm."""
+    if run_dir is None:
+        run_dir = os.path.join(root, f"ours-s{seed}")
+        cfg = tacrl.parse_args(["--task", "peg", "--seed", str(seed), "--threads", str(threads), "--run-dir", run_dir])
+        shown = ("stopped", "TA-MRP")
+        tacrl.train(cfg, log=lambda msg: print("  ours:", msg, flush=True) if msg.startswith(shown) else None)
+    with open(os.path.join(run_dir, "eval.json")) as f:
+        result = json.load(f)
     with open(os.path.join(run_dir, "metrics.csv")) as f:
         rows = list(csv.DictReader(f))
     episodes = [(float(r["elapsed_s"]), float(r["e_r_mm"]) / 1000, int(r["success"]), float(r["sr15"])) for r in rows]
     row20 = next(r for r in result["rows"] if r["error_mm"] == 20.0)
-    return {"train_minutes": result["train_minutes"], "wall_minutes": seconds / 60, "episodes": len(rows),
+    return {"train_minutes": result["train_minutes"], "episodes": len(rows), "seed": result["seed"],
             "to_criterion": minutes_to_criterion(episodes), "sr20": row20["success_rate"], "ct20": row20["completion_time_s"]}
 
 
@@ -120,11 +124,14 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--ours", help="a finished run dir of `python tacrl.py --task peg` to compare with")
     ap.add_argument("--out", default=os.path.join(os.path.dirname(os.path.abspath(__file__)), "runs"))
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
     print(f"ours (tacrl.py), seed {a.seed}, {a.threads} torch threads", flush=True)
-    ours = run_ours(a.seed, a.threads, a.out)
+    ours = run_ours(a.seed, a.threads, a.out, a.ours)
+    if ours["seed"] != a.seed:
+        sys.exit(f"--ours: {a.ours} was trained with seed {ours['seed']}, not --seed {a.seed}")
     print(f"SB3 SAC, seed {a.seed}, for the {ours['train_minutes']:.1f} min ours trained", flush=True)
     sb3 = run_sb3(a.seed, a.threads, ours["train_minutes"] * 60)
     for name, r in (("ours", ours), ("SB3 SAC", sb3)):
