@@ -4,9 +4,11 @@ A UR5 (assets/ur5.urdf, built from its DH parameters) with a 6-axis force/torque
 joint between flange and tool, an eye-in-hand camera, and one of two task boards built from boxes so
 that the clearances are exact:
     peg   a 16 mm round peg into a 16-gon hole, 0.1 mm diametral clearance, 25 mm deep,
-          0.5 mm x 45 deg entry chamfer
+          0.5 mm x 45 deg entry chamfer, on a board with a printed board's bumps around the hole
     gear  a 12-tooth gear slides 15 mm down a 10 mm shaft (0.1 mm clearance) while meshing with a
           fixed mating gear, so x, y and the rotation about z must align (about 0.03 rad)
+The play the part meets is the clearance at every yaw (lateral_play measures it). The sensors are a
+real robot's: the wrist wrench has the FT 300's noise and a drifting bias, the image shot noise.
 
 `AssemblyEnv` follows Gymnasium's API: reset(seed, options) -> (obs, info) and step(action) -> (obs,
 reward, terminated, truncated, info). With gymnasium installed (`pip install -e ".[gym]"`) it is a
@@ -78,9 +80,24 @@ F_MAX = 10.0                                        # F^max, N
 TAU_MAX = 1.0                                       # torque analogue of F^max, N m (our choice)
 F_MAX6 = np.array([F_MAX] * 3 + [TAU_MAX] * 3)
 # The wrist sensor saturates at its measuring range: Robotiq FT 300, a sensor made for UR arms,
-# +-300 N and +-30 N m (Robotiq's FT 300 instruction manual; its 16-bit data stream carries F x 100
-# and M x 1000, so it cannot report more than 327 N and 32.7 N m). Contact forces here stay far below.
+# +-300 N and +-30 N m (Robotiq's FT 300 instruction manual, 2018-12-18 edition, specifications;
+# assets.robotiq.com/website-assets/support_documents/document/FT_Sensor_Instruction_Manual_PDF_20181218.pdf.
+# Its 16-bit data stream carries F x 100 and M x 1000, so it cannot report more than 327 N and
+# 32.7 N m). Contact forces here stay far below.
 FT_RANGE = np.array([300.0] * 3 + [30.0] * 3, np.float32)
+# Its signal noise, per reading (one reading a 120 Hz tick; the FT 300 streams at 100 Hz): 0.1 N, and
+# 0.005 / 0.005 / 0.003 N m (the same manual's specifications, "signal noise"; taken as 1 sigma).
+FT_NOISE = np.array([0.1, 0.1, 0.1, 0.005, 0.005, 0.003])
+# Its zero drifts. The manual gives no drift rate; it recommends contact thresholds of 1 N and 0.02 /
+# 0.02 / 0.01 N m as what a reading must exceed to mean contact. We let the bias, zeroed at each
+# episode's start as a robot zeroes its sensor before an insertion, random-walk so that its 3 sigma
+# reaches those thresholds at the end of an episode (24 s): a slowly drifting bias of 0.33 N sigma.
+FT_DRIFT = np.array([1.0, 1.0, 1.0, 0.02, 0.02, 0.01]) / 3 / np.sqrt(24.0)   # per sqrt(s)
+# The camera's shot noise: a pixel that reads y (0-255) collected y * E_PER_DN photo-electrons, so
+# it reads y +- sqrt(y / E_PER_DN). A USB camera's small (1.4-2.2 um) pixels hold a few thousand
+# electrons at full scale; we take 4,500 e- over 255 DN: +-2.7 DN at mid gray (the paper's camera is
+# not named).
+E_PER_DN = 4500.0 / 255.0
 # The observed pose relative to X^_g lies within these (m, rad): the tip cannot get 2 m from the
 # board (the UR5 reaches 0.85 m from its shoulder) and a rotation vector's parts lie within +-pi.
 POSE_BOUND = np.array([2.0] * 3 + [np.pi] * 3, np.float32)
@@ -99,12 +116,25 @@ MASS = np.array([20.0, 20.0, 20.0, 0.4, 0.4, 0.4])  # M of Eq. 5: kg and kg m^2 
 JOINT_TORQUE_CAP = [10.0, 10.0, 10.0, 2.0, 2.0, 2.0]  # N m: the motors' limits (UR5 rated: 150 / 28)
 ZETA = 1.0                                          # damping ratio, B = 2 zeta sqrt(K M)
 
+# Bullet lets a pressed contact sink CONTACT_SLOP into the wall (its default, measured: a box pushed
+# against a wall rests 0.00998 mm inside it, whatever the force), so a part pushed to either side
+# travels 2 x CONTACT_SLOP more than the geometry allows. Holes and bores are made that much tighter,
+# so that the play the part meets is the nominal clearance (sim.lateral_play measures it).
+CONTACT_SLOP = 1e-5
 PEG_RADIUS = 0.008
 PEG_LENGTH = 0.050
+PEG_BLADES = 20                                     # boxes that make the round peg's collision shape (tool_xml)
 PEG_CAP = 0.0003                                    # the peg's lowest 0.3 mm: a square cap (tool_xml)
 HOLE_DEPTH = 0.025
 CHAMFER = 0.0005                                    # 0.5 mm x 45 deg entry chamfer
 BOARD_THICK = 0.030
+# The 3D-printed board's uneven top near the hole (the paper blames its two-step baseline's failures on
+# "the bumps ... uneven surfaces"): BUMPS smooth blobs, each a sphere's cap BUMP_H high and 2 x BUMP_A
+# across, where the peg's rim can meet them (within BUMP_R_MAX of the hole's axis: 20 mm of error,
+# diagonal, plus the peg's radius). Heights of one FDM layer (0.1-0.3 mm; 0.2 mm is the common
+# default) and widths of a few 0.4-0.45 mm extrusion lines; the same for every episode of a board
+# (BOARD_SEED), as a physical board is.
+BUMPS, BUMP_H, BUMP_A, BUMP_R_MAX, BOARD_SEED = 24, (1e-4, 2e-4), (8e-4, 1.5e-3), 0.036, 0
 SHAFT_RADIUS = 0.005
 SHAFT_HEIGHT = 0.015
 GEAR_THICK = 0.015
@@ -211,6 +241,20 @@ def chamfer_boxes(r_in, c, n, thick=0.002):
     return out
 
 
+def board_bumps(r_clear, seed=BOARD_SEED):
+    """The board's bumps: [(sphere radius, centre (x, y, z))] in the board frame, each sphere sunk so that
+    a cap BUMP_H high and BUMP_A in radius stands above the top (z = 0), and wholly outside r_clear of
+    the axis (the hole and its chamfer stay exact)."""
+    rng, out = np.random.default_rng(seed), []
+    while len(out) < BUMPS:
+        h, a = rng.uniform(*BUMP_H), rng.uniform(*BUMP_A)
+        rho = (a * a + h * h) / (2 * h)                           # the sphere whose cap that is
+        d = np.sqrt(rng.uniform((r_clear + rho) ** 2, BUMP_R_MAX ** 2))   # uniform over the area
+        phi = rng.uniform(0, 2 * np.pi)
+        out.append((rho, (d * np.cos(phi), d * np.sin(phi), h - rho)))
+    return out
+
+
 def plate_boxes(opening, size, z0, z1):
     """A square plate of side `size` with a square opening of half-side `opening`, as four boxes."""
     h, w = (z1 - z0) / 2, (size / 2 - opening) / 2
@@ -253,21 +297,29 @@ def tool_xml(task, clearance):
     Returns (xml, tip_offset): the tool tip sits at (0, 0, tip_offset) in the tool frame."""
     inertial = '<inertial><origin xyz="0 0 0"/><mass value="0.1"/><inertia ixx="5e-5" iyy="5e-5" izz="5e-5" ixy="0" ixz="0" iyz="0"/></inertial>'
     if task == "peg":
-        # Collision: 8 thin boxes (blades) turned by pi/8, whose 16 tips lie on the peg's circle.
-        # Bullet's cylinders keep a ~1 mm rounded margin when loaded from URDF (changeDynamics does
-        # not reach into the link's compound), which would hide a 0.1 mm clearance; boxes are exact.
-        half_w = 0.0005
-        half_l = np.sqrt(PEG_RADIUS ** 2 - half_w ** 2)    # blade corners exactly on the circle
+        # Collision: PEG_BLADES thin boxes (blades) through the axis, turned by pi / PEG_BLADES: their
+        # 2 x PEG_BLADES flat ends approximate the round peg. Bullet's cylinders keep a ~1 mm rounded
+        # margin when loaded from URDF (changeDynamics does not reach into the link's compound), which
+        # would hide a 0.1 mm clearance; boxes are exact. Each end spans +-alpha = pi / (4 PEG_BLADES)
+        # about its axis, so the peg's extent in any direction (its support function) lies within
+        # 1 - cos(alpha) = 0.08 % of its corner radius; the corners sit at PEG_RADIUS * alpha / sin(alpha)
+        # so that the extent's mean over directions is PEG_RADIUS. The lateral play then equals the
+        # nominal clearance within -0.004..+0.008 mm at every yaw (tests/test_sim.py measures it; the
+        # rest of the spread comes from the 16-gon hole's corners).
+        alpha = np.pi / (4 * PEG_BLADES)
+        r_c = PEG_RADIUS * alpha / np.sin(alpha)
+        half_w, half_l = r_c * np.sin(alpha), r_c * np.cos(alpha)
         o = f'<origin xyz="0 0 {PEG_LENGTH / 2:.7f}"/>'
         vis = (f'<visual>{o}<geometry><cylinder radius="{PEG_RADIUS:.7f}" length="{PEG_LENGTH:.7f}"/></geometry>'
                f'<material name="peg"><color rgba="{" ".join(map(str, ORANGE))}"/></material></visual>')
         # The blades stop PEG_CAP above the tip; the tip itself is one square box inscribed in the
-        # circle, so that on a flat surface one shape touches instead of eight (8x fewer contact
+        # circle, so that on a flat surface one shape touches instead of the blades (fewer contact
         # points for the solver: the peg resting on the board cost 2/3 of the step time).
         blade = PEG_LENGTH - PEG_CAP
         cols = "".join(
-            f'<collision><origin xyz="0 0 {blade / 2:.7f}" rpy="0 0 {k * np.pi / 8:.7f}"/><geometry>'
-            f'<box size="{2 * half_l:.7f} {2 * half_w:.7f} {blade:.7f}"/></geometry></collision>\n' for k in range(8))
+            f'<collision><origin xyz="0 0 {blade / 2:.7f}" rpy="0 0 {k * np.pi / PEG_BLADES:.7f}"/><geometry>'
+            f'<box size="{2 * half_l:.7f} {2 * half_w:.7f} {blade:.7f}"/></geometry></collision>\n'
+            for k in range(PEG_BLADES))
         a = (PEG_RADIUS - PEG_CAP - 5e-5) / np.sqrt(2)    # corners inside the 45 deg cone of the blade tips
         cols += (f'<collision><origin xyz="0 0 {PEG_LENGTH - 0.0005:.7f}" rpy="0 0 {np.pi / 4:.7f}"/><geometry>'
                  f'<box size="{2 * a:.7f} {2 * a:.7f} 0.001"/></geometry></collision>')
@@ -277,7 +329,8 @@ def tool_xml(task, clearance):
     # are symmetric about the x axis and the mirror does not matter.
     z0, z1 = HOLDER_LENGTH, HOLDER_LENGTH + GEAR_THICK
     parts = [_urdf_cylinder(0.008, 0.0, z0, DARK)]
-    ring = ring_boxes(SHAFT_RADIUS + clearance / 2, GEAR_R_ROOT + 0.002 - SHAFT_RADIUS, z0, z1, 12)
+    r_bore = SHAFT_RADIUS + clearance / 2 - CONTACT_SLOP      # inscribed radius of the 12-gon bore
+    ring = ring_boxes(r_bore, GEAR_R_ROOT + 0.002 - r_bore, z0, z1, 12)
     parts += [_urdf_box(he, pos, R, BRASS) for he, pos, R in ring]
     parts += [_urdf_box(he, pos, R, BRASS) for he, pos, R in
               gear_teeth(GEAR_R_ROOT, GEAR_R_TIP, TOOTH_WIDTH, GEAR_TEETH, z0, z1)]
@@ -344,8 +397,11 @@ class World:
     caches, solver warm starts: bullet3 issues 2442, 4387), so an episode run after others would
     differ from the same episode in a fresh world; after a rebuild it does not."""
 
-    def __init__(self, task="peg", clearance=1e-4, gui=False):
+    def __init__(self, task="peg", clearance=1e-4, gui=False, ft_noise=True, image_noise=True):
         self.task, self.clearance, self.gui = task, clearance, gui
+        self.ft_noise, self.image_noise = ft_noise, image_noise
+        self.noise_rng = np.random.default_rng(0)      # the sensors' noise; the env seeds it each episode
+        self.f_drift = np.zeros(6)
         with quiet_c_output():
             self.bc = bullet_client.BulletClient(p.GUI if gui else p.DIRECT)
         self.urdf, self.tip_offset = robot_urdf(task, clearance)      # a temporary file, removed by close
@@ -365,7 +421,8 @@ class World:
         # Contacts break after 1 mm, not Bullet's 20 mm: at the default, a point made where a blade
         # touched the chamfer stayed in the cache after the blade slid past it, still pushing up
         # along the chamfer's normal, and held a centred peg 1 mm into the hole (bench/jam_noise.py).
-        bc.setPhysicsEngineParameter(numSolverIterations=50, enableFileCaching=0, contactBreakingThreshold=0.001)
+        bc.setPhysicsEngineParameter(numSolverIterations=50, enableFileCaching=0, contactBreakingThreshold=0.001,
+                                     contactSlop=CONTACT_SLOP)
         if self.gui:
             bc.configureDebugVisualizer(p.COV_ENABLE_GUI, 0)
         # table: top at z = 0
@@ -409,13 +466,27 @@ class World:
             bodies.append(body)
         return bodies
 
+    def _spheres(self, spheres):
+        """Static bodies from [(radius, pos)] spheres, 16 a body (see _compound)."""
+        bc, bodies = self.bc, []
+        for k in range(0, len(spheres), 16):
+            chunk = spheres[k:k + 16]
+            r, pos = [sp[0] for sp in chunk], [list(sp[1]) for sp in chunk]
+            col = bc.createCollisionShapeArray([p.GEOM_SPHERE] * len(chunk), radii=r, collisionFramePositions=pos)
+            vis = bc.createVisualShapeArray([p.GEOM_SPHERE] * len(chunk), radii=r, visualFramePositions=pos,
+                                            rgbaColors=[list(WHITE)] * len(chunk))
+            body = bc.createMultiBody(0, col, vis, [0, 0, 0])
+            bc.changeDynamics(body, -1, lateralFriction=0.3)
+            bodies.append(body)
+        return bodies
+
     def _build_board(self):
         """The task board in its own frame: origin on the board's top surface at the hole (shaft)
         axis, z up; X_g is expressed in this frame (goal_in_board). Returns (plate bodies, other
         bodies as [(body, z offset of its base)])."""
         t = BOARD_THICK
         if self.task == "peg":
-            r_h = PEG_RADIUS + self.clearance / 2      # inscribed radius of the 16-gon hole
+            r_h = PEG_RADIUS + self.clearance / 2 - CONTACT_SLOP     # inscribed radius of the 16-gon hole
             plate = [(he, pos, R, WHITE) for he, pos, R in plate_boxes(0.012, 0.12, -t, 0.0)]
             parts = [(he, pos, R, BLACK) for he, pos, R in ring_boxes(r_h, 0.012, -HOLE_DEPTH, -CHAMFER, 16)]
             parts += [(he, pos, R, GREY) for he, pos, R in chamfer_boxes(r_h, CHAMFER, 16)]
@@ -424,7 +495,8 @@ class World:
             # into view-dependent stripes
             parts += [(he, pos, R, WHITE) for he, pos, R in ring_boxes(r_h + CHAMFER, 0.012 - CHAMFER, -CHAMFER, 0.0, 16)]
             parts.append(((0.02, 0.02, (t - HOLE_DEPTH) / 2), (0, 0, -(t + HOLE_DEPTH) / 2), np.eye(3), BLACK))
-            return self._compound(plate), [(b, 0.0) for b in self._compound(parts)]
+            bumps = self._spheres(board_bumps(r_h + CHAMFER + 3e-4))     # in the board's colour, as the plate
+            return self._compound(plate) + bumps, [(b, 0.0) for b in self._compound(parts)]
         # gear board: plate, fixed mating gear (hub + teeth, a gap facing the shaft), shaft body
         plate = [((0.06, 0.06, t / 2), (0, 0, -t / 2), np.eye(3), WHITE)]
         c = GEAR_CENTRES
@@ -509,11 +581,18 @@ class World:
         return np.array(self.bc.getJointState(self.robot, self.ft_joint)[2])
 
     def tare(self):
+        """Zero the sensor (from a settled reading, as the sensor's own zeroing averages): the drift starts anew."""
         self.f_bias = self.raw_wrench()
+        self.f_drift = np.zeros(6)
 
     def wrench_tool(self, raw):
-        """Wrench the environment exerts on the tool (F of Eq. 4), moved to the tool tip, tool frame."""
+        """One sensor reading: the wrench the environment exerts on the tool (F of Eq. 4), with the sensor's
+        noise and drifting bias (in its own frame), moved to the tool tip, tool frame. The controller
+        and the policy both see this reading."""
         w = -(raw - self.f_bias)
+        if self.ft_noise:
+            self.f_drift += self.noise_rng.standard_normal(6) * FT_DRIFT * np.sqrt(1.0 / CONTROL_HZ)
+            w = w + self.f_drift + self.noise_rng.standard_normal(6) * FT_NOISE
         f, tau = w[:3], w[3:]
         # tau_tip = tau - r x f with r = (0, 0, tip_offset) from the sensor origin to the tip
         # (written out: np.cross costs more than the rest of the tick's arithmetic)
@@ -580,7 +659,11 @@ class World:
         img = self.bc.getCameraImage(size, size, view.T.flatten().tolist(), proj, renderer=p.ER_TINY_RENDERER,
                                      flags=p.ER_NO_SEGMENTATION_MASK)[2]
         rgb = np.asarray(img, np.uint8).reshape(size, size, 4)[:, :, :3].astype(np.float32)
-        return (rgb @ np.array([0.299, 0.587, 0.114], np.float32)).astype(np.uint8)
+        gray = rgb @ np.array([0.299, 0.587, 0.114], np.float32)
+        if self.image_noise:            # shot noise (E_PER_DN), then the 8-bit quantization
+            gray = gray + np.sqrt(gray / E_PER_DN) * self.noise_rng.standard_normal(gray.shape).astype(np.float32)
+            return np.clip(np.rint(gray), 0, 255).astype(np.uint8)
+        return gray.astype(np.uint8)
 
     def render_external(self, w=480, h=360):
         """An external RGB view of the task for videos."""
@@ -615,6 +698,45 @@ def probe(world, x_start, x_target, f_d=np.zeros(6), ex=(1e-5, 1e-5, 0.05, 0.02,
         hist.append(f_tool)
         normal.append(sum(c[9] for c in world.bc.getContactPoints(world.robot)))
     return world.tool_pose(), np.mean(hist[-CONTROL_HZ:], 0), float(np.mean(normal[-CONTROL_HZ:]))
+
+
+def lateral_play(task, clearance, yaws, directions=8, depth=0.010, force=0.2, steps=120):
+    """The part's lateral play, measured physically: the tool's collision shape alone as a free body
+    (1 kg, an inertia that keeps it upright), `depth` into the hole (peg) or onto the shaft (gear), at
+    each relative yaw (rad) pushed with `force` N toward each of `directions` directions (no friction)
+    until it rests on the wall. Returns the diametral play (m) per yaw and direction pair, shape
+    (len(yaws), directions // 2): the travel toward phi plus the travel toward phi + pi."""
+    w = World(task, clearance, ft_noise=False, image_noise=False)
+    bc = w.bc
+    (p_g, _), _ = w.place(CONTEXTS["train"])
+    bc.removeBody(w.robot)
+    walls = [b for b, _ in w.parts] if task == "peg" else [w.parts[-1][0]]     # the hole, or the shaft
+    for b, _ in w.parts:
+        if b in walls:
+            bc.changeDynamics(b, -1, lateralFriction=0.0)
+        else:
+            bc.removeBody(b)
+    xml, tip = tool_xml(task, clearance)
+    with tempfile.NamedTemporaryFile("w", suffix=".urdf", delete=False) as f:
+        f.write(f'<robot name="part"><link name="tool">{xml}</link></robot>')
+    part = bc.loadURDF(f.name)
+    os.remove(f.name)
+    bc.changeDynamics(part, -1, mass=1.0, localInertiaDiagonal=[1e3] * 3, collisionMargin=0.0, lateralFriction=0.0)
+    top = p_g[2] + (HOLE_DEPTH if task == "peg" else SHAFT_HEIGHT)   # the board's top, or the shaft's
+    travel = np.zeros((len(yaws), directions))
+    for i, yaw in enumerate(yaws):
+        R = ctl.rot_z(w.goal_yaw + yaw) @ R_DOWN
+        start = np.array([p_g[0], p_g[1], top - depth]) - R[:, 2] * tip
+        for j in range(directions):
+            u = np.array([np.cos(2 * np.pi * j / directions), np.sin(2 * np.pi * j / directions), 0.0])
+            bc.resetBasePositionAndOrientation(part, start.tolist(), quat_from_matrix(R))
+            bc.resetBaseVelocity(part, [0, 0, 0], [0, 0, 0])
+            for _ in range(steps):
+                bc.applyExternalForce(part, -1, (force * u).tolist(), [0, 0, 0], p.WORLD_FRAME)
+                bc.stepSimulation()
+            travel[i, j] = (np.array(bc.getBasePositionAndOrientation(part)[0]) - start) @ u
+    w.close()
+    return travel[:, :directions // 2] + travel[:, directions // 2:]
 
 
 # ---------------------------------------------------------------- Eq. 11: task-attention ROI
@@ -691,7 +813,8 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
     still starts the tool CLEAR of the parts (from 20 mm up: at 30 mm X_i is 40 mm above them);
     trajectory: False holds X_d at X^_i (the vanilla baseline: no trajectory guidance, the residual
     acts alone through the same compliance); render_mode: None or 'rgb_array' (render() is the
-    external camera's view).
+    external camera's view); ft_noise, image_noise: the wrist sensor's noise and drift, the camera's
+    shot noise (FT_NOISE, FT_DRIFT, E_PER_DN), on as on a real robot, off for exact tests.
 
     obs = {'image': (80, 80) uint8, 'pose_hist': (32, 6) float32 [x y z (m) rx ry rz (rad)] of the
     tip relative to X^_g in X^_g's frame, newest last, 'wrench_hist': (32, 6) float32 [F (N), T (N m)]
@@ -701,7 +824,8 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
     metadata = {"render_modes": ["rgb_array"], "render_fps": POLICY_HZ}
 
     def __init__(self, task="peg", context="train", e_r=0.0, ex_r=None, roi="task", clearance=1e-4,
-                 gui=False, image=True, trajectory=True, e_r_max=None, render_mode=None):
+                 gui=False, image=True, trajectory=True, e_r_max=None, render_mode=None, ft_noise=True,
+                 image_noise=True):
         if task not in ("peg", "gear"):
             raise ValueError(f"unknown task {task!r} (peg, gear)")
         if context not in CONTEXTS:
@@ -718,7 +842,7 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
                 "pose_hist": spaces.Box(np.tile(-POSE_BOUND, (HIST, 1)), np.tile(POSE_BOUND, (HIST, 1)), dtype=np.float32),
                 "wrench_hist": spaces.Box(np.tile(-FT_RANGE, (HIST, 1)), np.tile(FT_RANGE, (HIST, 1)), dtype=np.float32)})
             self.action_space = spaces.Box(-1.0, 1.0, (6,), np.float32)
-        self.world = World(task, clearance, gui)
+        self.world = World(task, clearance, gui, ft_noise, image_noise)
         self.e_r_max = max(E_R_FINAL, e_r, e_r_max or 0.0)
         self.approach = max(APPROACH, round(self.e_r_max + CLEAR, 6))
         self.set_ranges(e_r, ex_r)
@@ -761,6 +885,7 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
         w.rebuild()                    # every episode in a fresh world: it depends on its seed only
         scale = np.array([self.e_r] * 3 + [E_ROT_FINAL * self.e_r / E_R_FINAL])
         e = np.asarray(options["error"], float) if "error" in options else self.np_random.uniform(-1, 1, 4) * scale  # Eq. 13
+        w.noise_rng = np.random.default_rng(self.np_random.integers(2 ** 63))     # this episode's sensor noise
         self.x_g, self.x_i = w.place(ctx, np.asarray(options.get("goal_shift", np.zeros(4)), float), self.approach)
         R_e = ctl.rot_z(e[3])
         self.x_g_hat = (self.x_g[0] + e[:3], R_e @ self.x_g[1])      # Eq. 15
