@@ -197,18 +197,18 @@ def test_a_finished_run_is_not_resumed_but_can_be_extended(tiny_run, tmp_path, c
 def test_a_run_stops_when_the_greedy_policy_passes_validation_twice(tmp_path, monkeypatch):
     # no curriculum: E_r is at its final range from the first episode, so with --stop-held 3 the greedy
     # policy is validated after episode 3 and then every VAL_EVERY (2 here) episodes, 2 episodes a time
-    monkeypatch.setattr(sim, "MAX_STEPS", SHORT)
+    monkeypatch.setattr(sim, "MAX_STEPS", 10)               # short episodes: the rule is tested, not learning
     monkeypatch.setattr(tacrl, "VAL_EPISODES", 2)
     monkeypatch.setattr(tacrl, "VAL_EVERY", 2)
     runs = {}
-    for wins in (3, 0):                       # 3 of 2 never passes: the run trains all 12 episodes
+    for wins in (3, 0):                       # 3 of 2 never passes: the run trains all 8 episodes
         monkeypatch.setattr(tacrl, "VAL_WINS", wins)
         lines = []
-        result = tacrl.train(tacrl.parse_args(TINY + ["--curriculum", "none", "--stop-held", "3", "--run-dir",
-                                                      str(tmp_path / f"w{wins}")]), log=lines.append)
+        result = tacrl.train(tacrl.parse_args(TINY + ["--curriculum", "none", "--stop-held", "3", "--train-episodes",
+                                                      "8", "--run-dir", str(tmp_path / f"w{wins}")]), log=lines.append)
         runs[wins] = (result["train_episodes"], [x for x in lines if x.startswith(("validation", "stopped"))])
-    assert runs[3][0] == 12 and [x.split()[3] for x in runs[3][1]] == ["3:", "5:", "7:", "9:", "11:"]
-    assert runs[0][0] == 5 and runs[0][1][-1] == "stopped as learned at episode 5 (--stop-held 0 trains all 12)"
+    assert runs[3][0] == 8 and [x.split()[3] for x in runs[3][1]] == ["3:", "5:", "7:"]
+    assert runs[0][0] == 5 and runs[0][1][-1] == "stopped as learned at episode 5 (--stop-held 0 trains all 8)"
     assert runs[0][1][1].endswith("(2 of 2 passes in a row)")
 
 
