@@ -127,4 +127,6 @@ class TwoStep:
         else:
             self.a[:2] = np.clip(self.lateral + (self.SPIRAL_GAIN * spiral + self.bias) / w, -1, 1)
         self.a[2] = {"spiral": self.PRESS, "insert": 1.0}.get(self.phase, 0.0)
-        return self.a.copy()
+        a = self.a.copy()                              # planned in world x, y; the env takes the task frame's
+        a[:2] = self.env.task_rotation()[:2, :2].T @ a[:2]
+        return a

@@ -21,7 +21,9 @@ admittance controller of control.py at 120 Hz, physics at 240 Hz. What this file
 
 Frames and units: metres, radians, newtons. World z is up; the table top is z = 0. A tool pose X is
 the tool tip (the peg tip, the gear's lower face) with the tool's z axis pointing down. Observed
-poses are relative to the estimated goal X^_g (the task 'origin'), wrenches are in the tool frame.
+poses are relative to the estimated goal X^_g (the task 'origin'), wrenches are in the tool frame,
+actions (F_d) in the estimated task frame, and the errors lie along the board's axes: moving or
+turning the board on the table changes nothing the policy sees or does.
 No ground truth (X_g, X_i) reaches the observation: only the reward and the success check use it.
 
 Run `python sim.py --gui` to watch the hand-designed policy on the peg board.
@@ -783,7 +785,7 @@ def roi_box(world, x_i, board_pose, e_r, e_rot, directions, margin=8):
         for sign in (-1.0, 1.0):
             p_t, R_t = x_i[0].copy(), x_i[1]
             if d in (0, 1, 2):
-                p_t[d] += sign * e_r
+                p_t += sign * e_r * R_b[:, d]          # Eq. 13's errors lie along the board's axes
             elif d == 5:
                 R_t = ctl.rot_z(sign * e_rot) @ R_t
             cam = (p_t + R_t @ cam_rel[0], R_t @ cam_rel[1])
@@ -864,11 +866,12 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
     def _alignment_directions(self):
         return (0, 1) if self.task == "peg" else (0, 1, 5)
 
-    def _compute_roi(self, x_i, ctx):
-        """Eq. 11 at the largest error range, or a preset window centred on the task features."""
+    def _compute_roi(self, x_i, x_g):
+        """Eq. 11 at the largest error range, or a preset window centred on the task features; the board's
+        pose is the one placed (X_g's), so that a board moved or turned on the table keeps its window."""
         w = self.world
-        p_b = np.array([ctx.board_xy[0], ctx.board_xy[1], BOARD_THICK])
-        board = (p_b, ctl.rot_z(ctx.board_yaw))
+        R_b = x_g[1] @ R_DOWN
+        board = (x_g[0] - R_b @ w.goal_in_board(), R_b)
         if self.roi_name == "task":
             return roi_box(w, x_i, board, self.e_r_max, E_ROT_FINAL * (self.e_r_max / E_R_FINAL),
                            self._alignment_directions())
@@ -876,7 +879,8 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
         return preset_roi(self.roi_name, ((c[0] + c[2]) / 2, (c[1] + c[3]) / 2))
 
     def reset(self, seed=None, options=None):
-        """Eq. 13-15: e ~ U(-1, 1) * E_r in x, y, z and rotation about z; X^_i = X_i + e, X^_g = X_g + e.
+        """Eq. 13-15: e ~ U(-1, 1) * E_r in x, y, z and rotation about z, in the board's frame (so that a
+        board moved or turned on the table meets the same errors); X^_i = X_i + e, X^_g = X_g + e.
         options: 'error' (4,) fixes e; 'goal_shift' (4,) moves the board (and so X_g) by (dx, dy, dz, dyaw)."""
         if seed is not None:      # as gymnasium.Env.reset(seed) does: the same stream as default_rng(seed)
             self.np_random = np.random.default_rng(seed)
@@ -887,9 +891,9 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
         e = np.asarray(options["error"], float) if "error" in options else self.np_random.uniform(-1, 1, 4) * scale  # Eq. 13
         w.noise_rng = np.random.default_rng(self.np_random.integers(2 ** 63))     # this episode's sensor noise
         self.x_g, self.x_i = w.place(ctx, np.asarray(options.get("goal_shift", np.zeros(4)), float), self.approach)
-        R_e = ctl.rot_z(e[3])
-        self.x_g_hat = (self.x_g[0] + e[:3], R_e @ self.x_g[1])      # Eq. 15
-        self.x_i_hat = (self.x_i[0] + e[:3], R_e @ self.x_i[1])      # Eq. 14
+        R_e, e_w = ctl.rot_z(e[3]), self.x_g[1] @ R_DOWN @ e[:3]     # e's offset in world axes
+        self.x_g_hat = (self.x_g[0] + e_w, R_e @ self.x_g[1])        # Eq. 15
+        self.x_i_hat = (self.x_i[0] + e_w, R_e @ self.x_i[1])        # Eq. 14
         self.error = e
         ex_rot = max(E_ROT_FINAL * self.ex_r / E_R_FINAL, 0.01)
         ex = np.array([self.ex_r] * 3 + list(EX_ROT) + [ex_rot])
@@ -903,7 +907,7 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
         w.move_to(self.x_i_hat)
         w.tare()
         if self.roi is None or self._roi_key != (self.context, self.roi_name):
-            self.roi, self._roi_key = self._compute_roi(self.x_i, ctx), (self.context, self.roi_name)
+            self.roi, self._roi_key = self._compute_roi(self.x_i, self.x_g), (self.context, self.roi_name)
         self.t, self.steps = 0.0, 0
         self.f_tool, self.f_tick = np.zeros(6), np.zeros(6)
         x = w.tool_pose()
@@ -928,9 +932,18 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
                 "f_world": to_world(x[1], self.f_tool),
                 "e_r": self.e_r, "ex_r": self.ex_r, "error": self.error.copy(), "roi": self.roi}
 
+    def task_rotation(self):
+        """The estimated task frame's orientation in world: the board as the robot believes it lies (X^_g's
+        yaw), z up. Observed poses are relative to X^_g and wrenches are in the tool frame, so they turn
+        with the board; actions are given in this frame, so that they turn with it too."""
+        return self.x_g_hat[1] @ R_DOWN                 # X^_g = rot_z(yaw^) R_DOWN, and R_DOWN R_DOWN = I
+
     def action_to_fd(self, action):
-        """a in [-1, 1]^6 -> F_d (6,) = a * F_max/2 (world axes at the tip): +-5 N and +-0.5 N m."""
-        return np.clip(np.asarray(action, float), -1.0, 1.0) * F_MAX6 / 2
+        """a in [-1, 1]^6 -> F_d (6,) = a * F_max/2, +-5 N and +-0.5 N m in the estimated task frame (Eq. 12),
+        returned in world axes at the tip."""
+        f = np.clip(np.asarray(action, float), -1.0, 1.0) * F_MAX6 / 2
+        R = self.task_rotation()
+        return np.concatenate([R @ f[:3], R @ f[3:]])
 
     def step(self, action):
         w = self.world

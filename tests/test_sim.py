@@ -152,7 +152,9 @@ def test_env_interface_and_seeded_errors():
     assert not np.allclose(obs2["pose_hist"][-1], obs["pose_hist"][-1])
     np.testing.assert_allclose(env.reset(seed=3)[1]["error"], e1)        # seeds reproduce
     assert not np.allclose(env.reset(seed=4)[1]["error"], e1)
-    np.testing.assert_allclose(env.action_to_fd([2, -1, 0.5, 1, 0, -1]), [5, -5, 2.5, 0.5, 0, -0.5])
+    f = env.action_to_fd([2, -1, 0.5, 1, 0, -1])        # clipped, scaled, in the estimated task frame
+    R = env.task_rotation()
+    np.testing.assert_allclose(np.r_[R.T @ f[:3], R.T @ f[3:]], [5, -5, 2.5, 0.5, 0, -0.5], atol=1e-12)
     env.close()
 
 
@@ -314,3 +316,24 @@ def test_board_bumps_are_fixed_per_board_and_keep_out_of_the_hole():
         hit = w.bc.rayTest([xy[0], xy[1], top + 0.01], [xy[0], xy[1], top - 0.01])[0]
         assert abs(hit[3][2] - (top + h)) < 2e-5, (hit, h)   # the simulator's surface has it
     w.close()
+
+
+@pytest.mark.parametrize("shift", [(0.05, -0.08, 0.0, 0.4), (-0.06, 0.1, 0.0, -0.5)])
+def test_turning_and_moving_the_board_changes_nothing_the_policy_sees_or_does(shift):
+    # the same episode (seed, errors in the board's frame) with the board moved and turned on the table:
+    # the same first observation (the image up to TinyRenderer's edge pixels), and the same action
+    # applies the same F_d in the board's frame
+    def first(goal_shift):
+        with sim.AssemblyEnv("peg", e_r=0.02, ft_noise=False, image_noise=False) as env:
+            obs, _ = env.reset(seed=4, options={"error": np.array([0.012, -0.008, 0.005, 0.05]),
+                                                "goal_shift": np.array(goal_shift)})
+            R = env.task_rotation()
+            f = env.action_to_fd(np.array([0.3, -0.6, 0.2, 0.1, -0.1, 0.5]))
+            return obs, np.concatenate([R.T @ f[:3], R.T @ f[3:]]), R
+    a, fa, Ra = first((0.0, 0.0, 0.0, 0.0))
+    b, fb, Rb = first(shift)
+    assert np.allclose(Rb, ctl.rot_z(shift[3]) @ Ra)
+    assert np.abs(a["pose_hist"] - b["pose_hist"]).max() < 1e-6 and np.array_equal(a["wrench_hist"], b["wrench_hist"])
+    d = np.abs(a["image"].astype(int) - b["image"].astype(int))
+    assert d.mean() < 0.5 and (d > 20).mean() < 0.005, (d.mean(), d.max())
+    assert np.allclose(fa, fb)
