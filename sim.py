@@ -449,34 +449,21 @@ class World:
         self.goal_yaw = 0.0
 
     # -- scene construction -------------------------------------------------------------
-    def _compound(self, parts):
-        """Static bodies from [(half_extents, pos, R, rgba)] boxes, 16 boxes a body: pybullet 3.2.7
-        segfaults in createVisualShapeArray past 16 shapes. Returns the list of body ids."""
+    def _compound(self, parts, geom=p.GEOM_BOX):
+        """Static bodies from [(size, pos, R, rgba)] shapes of one kind (boxes: size = half extents; spheres:
+        size = radius), 16 shapes a body: pybullet 3.2.7 segfaults in createVisualShapeArray past 16
+        shapes. Returns the list of body ids."""
         bc, bodies = self.bc, []
         for k in range(0, len(parts), 16):
             chunk = parts[k:k + 16]
-            he = [list(pt[0]) for pt in chunk]
+            sizes = [pt[0] for pt in chunk]
+            size = {"halfExtents": [list(x) for x in sizes]} if geom == p.GEOM_BOX else {"radii": sizes}
             pos = [list(pt[1]) for pt in chunk]
             orn = [quat_from_matrix(pt[2]) for pt in chunk]
-            col = bc.createCollisionShapeArray([p.GEOM_BOX] * len(chunk), halfExtents=he,
+            col = bc.createCollisionShapeArray([geom] * len(chunk), **size,
                                                collisionFramePositions=pos, collisionFrameOrientations=orn)
-            vis = bc.createVisualShapeArray([p.GEOM_BOX] * len(chunk), halfExtents=he,
-                                            rgbaColors=[list(pt[3]) for pt in chunk],
+            vis = bc.createVisualShapeArray([geom] * len(chunk), **size, rgbaColors=[list(pt[3]) for pt in chunk],
                                             visualFramePositions=pos, visualFrameOrientations=orn)
-            body = bc.createMultiBody(0, col, vis, [0, 0, 0])
-            bc.changeDynamics(body, -1, lateralFriction=0.3)
-            bodies.append(body)
-        return bodies
-
-    def _spheres(self, spheres):
-        """Static bodies from [(radius, pos)] spheres, 16 a body (see _compound)."""
-        bc, bodies = self.bc, []
-        for k in range(0, len(spheres), 16):
-            chunk = spheres[k:k + 16]
-            r, pos = [sp[0] for sp in chunk], [list(sp[1]) for sp in chunk]
-            col = bc.createCollisionShapeArray([p.GEOM_SPHERE] * len(chunk), radii=r, collisionFramePositions=pos)
-            vis = bc.createVisualShapeArray([p.GEOM_SPHERE] * len(chunk), radii=r, visualFramePositions=pos,
-                                            rgbaColors=[list(WHITE)] * len(chunk))
             body = bc.createMultiBody(0, col, vis, [0, 0, 0])
             bc.changeDynamics(body, -1, lateralFriction=0.3)
             bodies.append(body)
@@ -497,7 +484,8 @@ class World:
             # into view-dependent stripes
             parts += [(he, pos, R, WHITE) for he, pos, R in ring_boxes(r_h + CHAMFER, 0.012 - CHAMFER, -CHAMFER, 0.0, 16)]
             parts.append(((0.02, 0.02, (t - HOLE_DEPTH) / 2), (0, 0, -(t + HOLE_DEPTH) / 2), np.eye(3), BLACK))
-            bumps = self._spheres(board_bumps(r_h + CHAMFER + 3e-4))     # in the board's colour, as the plate
+            bumps = self._compound([(rho, c, np.eye(3), WHITE) for rho, c in board_bumps(r_h + CHAMFER + 3e-4)],
+                                   p.GEOM_SPHERE)                          # in the board's colour, as the plate
             return self._compound(plate) + bumps, [(b, 0.0) for b in self._compound(parts)]
         # gear board: plate, fixed mating gear (hub + teeth, a gap facing the shaft), shaft body
         plate = [((0.06, 0.06, t / 2), (0, 0, -t / 2), np.eye(3), WHITE)]
