@@ -95,11 +95,12 @@ FT_NOISE = np.array([0.1, 0.1, 0.1, 0.005, 0.005, 0.003])
 # episode's start as a robot zeroes its sensor before an insertion, random-walk so that its 3 sigma
 # reaches those thresholds at the end of an episode (24 s): a slowly drifting bias of 0.33 N sigma.
 FT_DRIFT = np.array([1.0, 1.0, 1.0, 0.02, 0.02, 0.01]) / 3 / np.sqrt(24.0)   # per sqrt(s)
-# The camera's shot noise: a pixel that reads y (0-255) collected y * E_PER_DN photo-electrons, so
-# it reads y +- sqrt(y / E_PER_DN). A USB camera's small (1.4-2.2 um) pixels hold a few thousand
-# electrons at full scale; we take 4,500 e- over 255 DN: +-2.7 DN at mid gray (the paper's camera is
-# not named).
-E_PER_DN = 4500.0 / 255.0
+# The camera's shot noise: a pixel that reads y (0-255) collected y * E_PER_DN photo-electrons, so it
+# reads y +- sqrt(y / E_PER_DN). A shot-noise-limited pixel's best SNR is sqrt(full well): the Micron
+# MT9T001 (3.2 um pixels, in USB2 board cameras) gives 43 dB (its data sheet, as tabulated in
+# kscitech.com/Webcam, 2006), so 10^(43/10) = 20,000 e- at full scale: +-1.3 DN at mid gray (the paper
+# names no camera).
+E_PER_DN = 20000.0 / 255.0
 # The observed pose relative to X^_g lies within these (m, rad): the tip cannot get 2 m from the
 # board (the UR5 reaches 0.85 m from its shoulder) and a rotation vector's parts lie within +-pi.
 POSE_BOUND = np.array([2.0] * 3 + [np.pi] * 3, np.float32)
@@ -150,10 +151,11 @@ ROBOT_HOME = [np.pi, -np.pi / 2, np.pi / 2, -np.pi / 2, -np.pi / 2, 0.0]
 R_DOWN = np.diag([1.0, -1.0, -1.0])                  # tool z down, tool x along world x
 
 # full camera view: 800 x 800 px, 60 deg (the paper's ROI-800*800); ROIs are windows of it
-CAM_FULL, CAM_FOV, CAM_NEAR, CAM_FAR = 800, 60.0, 0.01, 2.0
+CAM_FULL, CAM_FOV, CAM_NEAR, CAM_FAR = 800, 90.0, 0.01, 2.0
 ROI_PRESETS = {"full": (800, 800), "300": (300, 300), "200": (200, 200), "100x160": (100, 160)}
 
 WHITE, GREY, DARK, BLACK = (0.92, 0.92, 0.9, 1), (0.55, 0.55, 0.55, 1), (0.2, 0.2, 0.22, 1), (0.03, 0.03, 0.03, 1)
+WOOD = (0.62, 0.48, 0.34, 1)
 ORANGE, BRASS, TEAL = (0.95, 0.5, 0.1, 1), (0.8, 0.65, 0.2, 1), (0.1, 0.5, 0.55, 1)
 
 
@@ -162,23 +164,51 @@ def exploration_range(e_r, ex_r=None):
     return max(float(e_r if ex_r is None else ex_r), EX_MIN)
 
 
-# ---------------------------------------------------------------- contexts (Sec. 5.1.4, Fig. 12)
+# ---------------------------------------------------------------- the workcell and its contexts (Sec. 5.1.4, Fig. 12)
+# The workcell, fixed on the table in every context, as boxes (half extents, centre; m): a low fence
+# (the paper's "edge of the tray", Fig. 1) around the training place, a floor-tape line, and spare
+# workpieces; what the full view shows around the board differs from place to place.
+FENCE, TAPE, PART_BLUE, PART_GREY = (0.25, 0.3, 0.38, 1), (0.9, 0.78, 0.1, 1), (0.2, 0.35, 0.7, 1), (0.45, 0.45, 0.48, 1)
+WORKCELL = [((0.004, 0.124, 0.010), (0.386, 0.0, 0.010), FENCE), ((0.004, 0.124, 0.010), (0.614, 0.0, 0.010), FENCE),
+            ((0.114, 0.004, 0.010), (0.5, 0.12, 0.010), FENCE), ((0.114, 0.004, 0.010), (0.5, -0.12, 0.010), FENCE),
+            ((0.010, 0.45, 0.0005), (0.26, 0.0, 0.0005), TAPE),
+            ((0.03, 0.03, 0.02), (0.35, 0.31, 0.02), PART_BLUE), ((0.025, 0.04, 0.015), (0.47, -0.34, 0.015), PART_GREY),
+            ((0.04, 0.025, 0.03), (0.62, 0.37, 0.03), ORANGE), ((0.02, 0.02, 0.05), (0.20, -0.22, 0.05), TEAL)]
+
+
 @dataclass(frozen=True)
 class Context:
-    """Where the board stands and what surrounds it."""
+    """Where the board stands (its hole or shaft axis, its yaw) and what surrounds it. objects: boxes
+    (half extents, (dx, dy) in the board's frame, rgba) standing on the table (or, with on_board, on the
+    board's top); light: getCameraImage's light arguments as (name, value) pairs, () for TinyRenderer's own."""
     board_xy: tuple = (0.50, 0.0)
     board_yaw: float = 0.0
-    table_rgba: tuple = (0.62, 0.48, 0.34, 1)
+    table_rgba: tuple = WOOD
     board_rgba: tuple = WHITE
-    distractors: bool = False
+    objects: tuple = ()
+    on_board: bool = False
+    light: tuple = ()
 
 
+# Every context but 'train' is for testing. The four other places of the board on the table (the paper's
+# "four different table locations"), 25-30 cm from the training place, each turned; objects of several sizes
+# at several distances that stay outside the task ROI at every error up to 20 mm (tests/test_sim.py), small
+# parts lying on the board inside it, another light, other colours.
 CONTEXTS = {
     "train": Context(),
-    "loc-1": Context(board_xy=(0.42, 0.14)),
-    "loc-2": Context(board_xy=(0.58, -0.10), board_yaw=0.3),
-    "loc-3": Context(board_xy=(0.40, -0.16), board_yaw=-0.2),
-    "bg-objects": Context(distractors=True),
+    "loc-1": Context(board_xy=(0.50, 0.25), board_yaw=0.25),
+    "loc-2": Context(board_xy=(0.62, -0.22), board_yaw=0.3),
+    "loc-3": Context(board_xy=(0.36, -0.24), board_yaw=-0.2),
+    "loc-4": Context(board_xy=(0.68, 0.24), board_yaw=-0.45),
+    "bg-objects": Context(objects=(((0.008, 0.008, 0.012), (-0.1, 0.106), (0.8, 0.1, 0.1, 1)),        # a 16 mm part
+                                   ((0.015, 0.015, 0.02), (-0.14, -0.07), (0.1, 0.2, 0.8, 1)),        # a 3 cm block
+                                   ((0.05, 0.04, 0.06), (-0.19, 0.02), (0.9, 0.85, 0.1, 1)),          # a 12 cm box
+                                   ((0.012, 0.02, 0.01), (0.02, 0.1), (0.1, 0.6, 0.2, 1)))),
+    "bg-on-board": Context(objects=(((0.0035, 0.0035, 0.0016), (-0.03, 0.03), GREY),                 # an M4 nut
+                                    ((0.002, 0.009, 0.002), (0.025, -0.036), DARK),                   # a screw
+                                    ((0.006, 0.006, 0.004), (-0.036, -0.026), (0.8, 0.1, 0.1, 1))), on_board=True),
+    "bg-light": Context(light=(("lightDirection", (-1.0, -0.6, 0.8)), ("lightColor", (1.0, 0.8, 0.6)),
+                               ("lightAmbientCoeff", 0.35), ("lightDiffuseCoeff", 0.55))),
     "bg-colour": Context(table_rgba=(0.2, 0.3, 0.45, 1), board_rgba=(0.75, 0.85, 0.7, 1)),
 }
 
@@ -393,14 +423,15 @@ def display_problem():
 
 # ---------------------------------------------------------------- the world
 class World:
-    """The PyBullet scene: table, UR5 with tool, sensor and camera, one task board, distractors.
-    One DIRECT (or GUI) client of its own; every call names it. `rebuild` empties the simulation and
-    builds the scene again: PyBullet keeps history across resetJointState and resetBase... (contact
+    """The PyBullet scene of one context: table and workcell, UR5 with tool, sensor and camera, one task
+    board, the context's objects. One DIRECT (or GUI) client of its own; every call names it. `rebuild`
+    empties the simulation and builds the scene again: PyBullet keeps history across resetJointState and resetBase... (contact
     caches, solver warm starts: bullet3 issues 2442, 4387), so an episode run after others would
     differ from the same episode in a fresh world; after a rebuild it does not."""
 
-    def __init__(self, task="peg", clearance=1e-4, gui=False, ft_noise=True, image_noise=True):
+    def __init__(self, task="peg", clearance=1e-4, gui=False, ft_noise=True, image_noise=True, context=None):
         self.task, self.clearance, self.gui = task, clearance, gui
+        self.context = context or CONTEXTS["train"]
         self.ft_noise, self.image_noise = ft_noise, image_noise
         self.noise_rng = np.random.default_rng(0)      # the sensors' noise; the env seeds it each episode
         self.f_drift = np.zeros(6)
@@ -409,7 +440,9 @@ class World:
         self.urdf, self.tip_offset = robot_urdf(task, clearance)      # a temporary file, removed by close
         self._build()
 
-    def rebuild(self):
+    def rebuild(self, ctx=None):
+        """Empty the simulation and build the scene again, for context ctx (default: the same one)."""
+        self.context = ctx or self.context
         self.bc.resetSimulation()
         self._build()
 
@@ -427,10 +460,10 @@ class World:
                                      contactSlop=CONTACT_SLOP)
         if self.gui:
             bc.configureDebugVisualizer(p.COV_ENABLE_GUI, 0)
-        # table: top at z = 0
-        col = bc.createCollisionShape(p.GEOM_BOX, halfExtents=[0.6, 0.6, 0.02])
-        vis = bc.createVisualShape(p.GEOM_BOX, halfExtents=[0.6, 0.6, 0.02], rgbaColor=[0.62, 0.48, 0.34, 1])
-        self.table = bc.createMultiBody(0, col, vis, [0.45, 0.0, -0.02])
+        ctx = self.context
+        # table (top at z = 0) and the workcell on it
+        self.table = self._compound([((0.6, 0.6, 0.02), (0.45, 0.0, -0.02), np.eye(3), ctx.table_rgba)])[0]
+        self.workcell = self._compound([(he, c, np.eye(3), rgba) for he, c, rgba in WORKCELL])
         # robot with the task's tool
         with quiet_c_output():
             self.robot = bc.loadURDF(self.urdf, useFixedBase=True, flags=p.URDF_USE_INERTIA_FROM_FILE)
@@ -443,8 +476,7 @@ class World:
         for j in self.arm:   # no default motors fighting ours
             bc.setJointMotorControl2(self.robot, j, p.VELOCITY_CONTROL, targetVelocity=0, force=self.max_force[j])
         self.plate, self.parts = self._build_board()
-        self.distractors = self._build_distractors()
-        self.context = None            # place() colours the scene and sets the distractors for its context
+        self.objects = self._build_objects()
         self.f_bias = np.zeros(6)
         self.goal_yaw = 0.0
 
@@ -473,22 +505,23 @@ class World:
         """The task board in its own frame: origin on the board's top surface at the hole (shaft)
         axis, z up; X_g is expressed in this frame (goal_in_board). Returns (plate bodies, other
         bodies as [(body, z offset of its base)])."""
-        t = BOARD_THICK
+        t, board = BOARD_THICK, self.context.board_rgba
         if self.task == "peg":
             r_h = PEG_RADIUS + self.clearance / 2 - CONTACT_SLOP     # inscribed radius of the 16-gon hole
-            plate = [(he, pos, R, WHITE) for he, pos, R in plate_boxes(0.012, 0.12, -t, 0.0)]
+            plate = [(he, pos, R, board) for he, pos, R in plate_boxes(0.012, 0.12, -t, 0.0)]
             parts = [(he, pos, R, BLACK) for he, pos, R in ring_boxes(r_h, 0.012, -HOLE_DEPTH, -CHAMFER, 16)]
-            parts += [(he, pos, R, GREY) for he, pos, R in chamfer_boxes(r_h, CHAMFER, 16)]
+            shade = tuple(0.6 * c for c in board[:3]) + (1,)        # the chamfer: the board's plastic, darker
+            parts += [(he, pos, R, shade) for he, pos, R in chamfer_boxes(r_h, CHAMFER, 16)]
             # the top ring reaches under the plate (its 20 mm outer radius against the 12 mm half-side
             # opening): coplanar tops, so it takes the plate's colour, or TinyRenderer z-fights them
             # into view-dependent stripes
-            parts += [(he, pos, R, WHITE) for he, pos, R in ring_boxes(r_h + CHAMFER, 0.012 - CHAMFER, -CHAMFER, 0.0, 16)]
+            parts += [(he, pos, R, board) for he, pos, R in ring_boxes(r_h + CHAMFER, 0.012 - CHAMFER, -CHAMFER, 0.0, 16)]
             parts.append(((0.02, 0.02, (t - HOLE_DEPTH) / 2), (0, 0, -(t + HOLE_DEPTH) / 2), np.eye(3), BLACK))
-            bumps = self._compound([(rho, c, np.eye(3), WHITE) for rho, c in board_bumps(r_h + CHAMFER + 3e-4)],
+            bumps = self._compound([(rho, c, np.eye(3), board) for rho, c in board_bumps(r_h + CHAMFER + 3e-4)],
                                    p.GEOM_SPHERE)                          # in the board's colour, as the plate
             return self._compound(plate) + bumps, [(b, 0.0) for b in self._compound(parts)]
         # gear board: plate, fixed mating gear (hub + teeth, a gap facing the shaft), shaft body
-        plate = [((0.06, 0.06, t / 2), (0, 0, -t / 2), np.eye(3), WHITE)]
+        plate = [((0.06, 0.06, t / 2), (0, 0, -t / 2), np.eye(3), board)]
         c = GEAR_CENTRES
         teeth = gear_teeth(GEAR_R_ROOT, GEAR_R_TIP, TOOTH_WIDTH, GEAR_TEETH, 0.0, GEAR_THICK, phase=np.pi / GEAR_TEETH)
         parts = [(he, (pos[0] + c, pos[1], pos[2]), R, TEAL) for he, pos, R in teeth]
@@ -500,14 +533,15 @@ class World:
         bc.changeDynamics(shaft, -1, collisionMargin=0.0, lateralFriction=0.3)
         return self._compound(plate), [(b, 0.0) for b in self._compound(parts)] + [(shaft, SHAFT_HEIGHT / 2)]
 
-    def _build_distractors(self):
-        bc, out = self.bc, []
-        for he, rgba in [((0.03, 0.02, 0.025), (0.8, 0.1, 0.1, 1)), ((0.02, 0.02, 0.04), (0.1, 0.2, 0.8, 1)),
-                         ((0.025, 0.035, 0.015), (0.9, 0.85, 0.1, 1))]:
-            col = bc.createCollisionShape(p.GEOM_BOX, halfExtents=he)
-            vis = bc.createVisualShape(p.GEOM_BOX, halfExtents=he, rgbaColor=rgba)
-            out.append((bc.createMultiBody(0, col, vis, [5, 5, -1]), he))
-        return out
+    def _build_objects(self):
+        """The context's objects, where its board stands (a moved board leaves them in place)."""
+        ctx = self.context
+        if not ctx.objects:
+            return []
+        R_b = ctl.rot_z(ctx.board_yaw)
+        base = np.array([*ctx.board_xy, BOARD_THICK if ctx.on_board else 0.0])
+        return self._compound([(he, base + R_b @ np.array([dx, dy, he[2]]), R_b, rgba)
+                               for he, (dx, dy), rgba in ctx.objects])
 
     # -- placement ------------------------------------------------------------------------
     def part_top(self):
@@ -523,24 +557,17 @@ class World:
 
     def place(self, ctx, shift=np.zeros(4), approach=APPROACH):
         """Put the board where context `ctx` says, moved by shift = (dx, dy, dz, dyaw); returns the
-        true goal X_g and pre-assembly point X_i (the tip `approach` above the part) as poses (p, R)."""
+        true goal X_g and pre-assembly point X_i (the tip `approach` above the part) as poses (p, R). A
+        context other than the world's rebuilds the scene for it first."""
         bc = self.bc
+        if ctx != self.context:
+            self.rebuild(ctx)
         yaw = ctx.board_yaw + shift[3]
         R_b = ctl.rot_z(yaw)
         top = np.array([ctx.board_xy[0] + shift[0], ctx.board_xy[1] + shift[1], BOARD_THICK + shift[2]])
         q = quat_from_matrix(R_b)
         for body, dz in [(b, 0.0) for b in self.plate] + self.parts:
             bc.resetBasePositionAndOrientation(body, (top + [0, 0, dz]).tolist(), q)
-        if ctx != self.context:
-            bc.changeVisualShape(self.table, -1, rgbaColor=ctx.table_rgba)
-            for body in self.plate:
-                for i in range(len(bc.getVisualShapeData(body))):
-                    bc.changeVisualShape(body, -1, shapeIndex=i, rgbaColor=ctx.board_rgba)
-            spots = [(-0.09, 0.07), (0.02, -0.10), (0.10, 0.08)]
-            for (body, he), (dx, dy) in zip(self.distractors, spots):
-                pos = [ctx.board_xy[0] + dx, ctx.board_xy[1] + dy, he[2]] if ctx.distractors else [5, 5, -1]
-                bc.resetBasePositionAndOrientation(body, pos, [0, 0, 0, 1])
-            self.context = ctx
         R_g = ctl.rot_z(yaw) @ R_DOWN
         p_g = top + R_b @ self.goal_in_board()
         p_i = top + np.array([0.0, 0.0, self.part_top() + approach])
@@ -647,7 +674,7 @@ class World:
         proj = self.bc.computeProjectionMatrix(left, right, bottom, top, CAM_NEAR, CAM_FAR)
         view = self.camera_matrices()
         img = self.bc.getCameraImage(size, size, view.T.flatten().tolist(), proj, renderer=p.ER_TINY_RENDERER,
-                                     flags=p.ER_NO_SEGMENTATION_MASK)[2]
+                                     flags=p.ER_NO_SEGMENTATION_MASK, **dict(self.context.light))[2]
         rgb = np.asarray(img, np.uint8).reshape(size, size, 4)[:, :, :3].astype(np.float32)
         gray = rgb @ np.array([0.299, 0.587, 0.114], np.float32)
         if self.image_noise:            # shot noise (E_PER_DN), then the 8-bit quantization
@@ -660,7 +687,7 @@ class World:
         tgt = self.bc.getBasePositionAndOrientation(self.plate[0])[0]
         view = self.bc.computeViewMatrixFromYawPitchRoll(tgt, 0.35, 50, -25, 0, 2)
         proj = self.bc.computeProjectionMatrixFOV(50, w / h, 0.01, 3)
-        img = self.bc.getCameraImage(w, h, view, proj, renderer=p.ER_TINY_RENDERER)[2]
+        img = self.bc.getCameraImage(w, h, view, proj, renderer=p.ER_TINY_RENDERER, **dict(self.context.light))[2]
         return np.asarray(img, np.uint8).reshape(h, w, 4)[:, :, :3]
 
     def close(self):
@@ -832,7 +859,7 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
                 "pose_hist": spaces.Box(np.tile(-POSE_BOUND, (HIST, 1)), np.tile(POSE_BOUND, (HIST, 1)), dtype=np.float32),
                 "wrench_hist": spaces.Box(np.tile(-FT_RANGE, (HIST, 1)), np.tile(FT_RANGE, (HIST, 1)), dtype=np.float32)})
             self.action_space = spaces.Box(-1.0, 1.0, (6,), np.float32)
-        self.world = World(task, clearance, gui, ft_noise, image_noise)
+        self.world = World(task, clearance, gui, ft_noise, image_noise, CONTEXTS[context])
         self.e_r_max = max(E_R_FINAL, e_r, e_r_max or 0.0)
         self.approach = max(APPROACH, round(self.e_r_max + CLEAR, 6))
         self.set_ranges(e_r, ex_r)
@@ -874,7 +901,7 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
             self.np_random = np.random.default_rng(seed)
         options = options or {}
         w, ctx = self.world, CONTEXTS[self.context]
-        w.rebuild()                    # every episode in a fresh world: it depends on its seed only
+        w.rebuild(ctx)                 # every episode in a fresh world: it depends on its seed only
         scale = np.array([self.e_r] * 3 + [E_ROT_FINAL * self.e_r / E_R_FINAL])
         e = np.asarray(options["error"], float) if "error" in options else self.np_random.uniform(-1, 1, 4) * scale  # Eq. 13
         w.noise_rng = np.random.default_rng(self.np_random.integers(2 ** 63))     # this episode's sensor noise
