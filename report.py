@@ -387,7 +387,102 @@ def write_report(patterns, out_dir="docs", log=print):
     return 0
 
 
-# ---------------------------------------------------------------- several seeds
+# ---------------------------------------------------------------- context generalization (Sec. 5.1.4, Fig. 12)
+VIEWS = {"task": "task attention", "full": "full view"}
+GOAL_SR15, GOAL_DROP20 = 0.9, 0.1      # issue 22's goal: SR >= 0.9 at 15 mm, within 0.1 of training's at 20 mm
+
+
+def goal_applies(ctx):
+    """The goal holds the task-attention policy to every other place of the board and to backgrounds whose
+    objects stay outside the task ROI; objects on the board, light and colour change what the ROI shows."""
+    c = sim.CONTEXTS[ctx]
+    return ctx.startswith("loc-") or (c.objects and not c.on_board)
+
+
+def context_rows(job):
+    """One (run dir, context, levels, episodes) evaluation, cached in the run dir under the context's definition
+    and the world's version (a context redefined, or another world, is evaluated again). Runs in a worker."""
+    d, ctx, levels, episodes = job
+    torch.set_num_threads(1)
+    key = {"world": sim.WORLD, "context": repr(sim.CONTEXTS[ctx]), "levels": list(levels), "episodes": episodes}
+    path = os.path.join(d, f"eval-ctx-{ctx}.json")
+    if os.path.exists(path) and {k: v for k, v in read_json(path).items() if k != "rows"} == key:
+        return read_json(path)["rows"]
+    run = load_run(d)
+    cfg, act = run["cfg"], tacrl.load_policy(os.path.join(d, "policy.pt"), run["cfg"]["task"])
+    with tacrl.eval_env(cfg["task"], act, ctx, cfg["roi"], cfg["clearance_mm"]) as env:
+        rows = tacrl.evaluate_levels(env, act, levels, episodes, tacrl.EVAL_SEED + cfg["seed"])
+    with open(path, "w") as f:
+        json.dump({**key, "rows": rows}, f, indent=2)
+    return rows
+
+
+def write_contexts(patterns, out_dir, levels=LEVELS, episodes=20, jobs=1, log=print):
+    """Train in one context, test in all: every run of ours (task attention) and of its full-view twin made in
+    this world, evaluated in every context of sim.CONTEXTS at `levels` (mm), `episodes` trials each; writes
+    out_dir/CONTEXTS.md with the table, the goal's check, Fig. 12 and each context's full and task views."""
+    cli.check_dir_writable(out_dir, "--out")
+    runs = [load_run(d) for d in match_runs(patterns)]
+    os.makedirs(out_dir, exist_ok=True)
+    runs = [r for r in runs if r["eval"] and r["eval"].get("world") == sim.WORLD and r["cfg"]["roi"] in VIEWS
+            and method_of({**r["cfg"], "roi": "task", "error_mm": 20.0}).startswith("ours")
+            and r["cfg"]["context"] == "train"]
+    if not runs:
+        raise ArgError(f"{patterns!r}: no finished run of ours or its full view made in this world (world {sim.WORLD})")
+    jobs_list = [(r["dir"], ctx, tuple(levels), episodes) for r in runs for ctx in sim.CONTEXTS]
+    log(f"  {len(runs)} runs x {len(sim.CONTEXTS)} contexts, {len(jobs_list) * len(levels) * episodes} episodes "
+        f"in {jobs} processes (cached ones are read back)")
+    if jobs > 1:
+        import concurrent.futures as cf
+        import multiprocessing as mp
+        with cf.ProcessPoolExecutor(jobs, mp_context=mp.get_context("spawn")) as ex:
+            results = list(ex.map(context_rows, jobs_list))
+    else:
+        results = [context_rows(j) for j in jobs_list]
+    table = {}                 # (task, roi, context) -> [rows of each seed]
+    for (d, ctx, _, _), rows in zip(jobs_list, results):
+        r = next(r for r in runs if r["dir"] == d)
+        view = VIEWS[r["cfg"]["roi"]] + method_of({**r["cfg"], "roi": "task", "error_mm": 20.0})[4:]   # + other settings
+        table.setdefault((r["cfg"]["task"], view, ctx), []).append(rows)
+    md = ["# Context generalization: trained in `train`, tested in every context", "",
+          f"Made by `python report.py --contexts \"{patterns}\"`. Every context is defined in `sim.CONTEXTS` "
+          f"(world {sim.WORLD}); the figures below show what each looks like. Each cell: success rate, mean over "
+          f"seeds (min-max), {episodes} trials per seed at each error range on held-out evaluation seeds; CR: the mean "
+          "cumulative reward over the ranges. Goal (task attention): SR >= 0.9 at 15 mm and within 0.1 of training's "
+          "at 20 mm, at every other place and with every background whose objects stay outside the task ROI.", "",
+          "| task | view | context | seeds | " + " | ".join(f"{mm:g} mm" for mm in levels) + " | CR | goal |",
+          "|---" * (6 + len(levels)) + "|"]
+    bars = {}
+    for (task, view, ctx), seeds in table.items():
+        sr = np.array([[x["success_rate"] for x in rows] for rows in seeds])          # (seeds, levels)
+        cr = np.array([np.mean([x["cumulative_reward"][0] for x in rows]) for rows in seeds])
+        bars.setdefault(task, {}).setdefault(view, {})[ctx] = [float(cr.mean()), float(cr.std())]
+        goal = "-"
+        if view.startswith(VIEWS["task"]) and goal_applies(ctx) and 15.0 in levels and 20.0 in levels:
+            train = np.array([[x["success_rate"] for x in rows] for rows in table[(task, view, "train")]])
+            i15, i20 = list(levels).index(15.0), list(levels).index(20.0)
+            met = sr[:, i15].mean() >= GOAL_SR15 and train[:, i20].mean() - sr[:, i20].mean() <= GOAL_DROP20 + 1e-9
+            goal = "met" if met else "**missed**"
+        cells = [f"{m:.2f} ({lo:.2f}-{hi:.2f})" if len(sr) > 1 else f"{m:.2f}"
+                 for m, lo, hi in zip(sr.mean(0), sr.min(0), sr.max(0))]
+        md.append(f"| {task} | {view} | {ctx} | {len(seeds)} | {' | '.join(cells)} | {cr.mean():.1f} | {goal} |")
+    md += ["", "The paper (real robot, Fig. 12, average cumulative reward): task attention 61.19 -> 54.73 (new "
+           "background), 69.23 -> 46.46 (new location); full view 61.12 -> -23.06 and 59.51 -> -14.65.", ""]
+    for task, by_view in bars.items():
+        name = f"fig-{task}-contexts.png"
+        figures.plot_context_bars(by_view, os.path.join(out_dir, name), f"{task}: trained in 'train', tested in each context")
+        md += [f"![{task}: Fig. 12]({name})", "", f"*{task}: mean cumulative reward per context (bars: spread over "
+               "seeds), task attention against the full view (the paper's Fig. 12)*", ""]
+    for task in sorted({t for t, _, _ in table}):
+        name = f"fig-{task}-context-views.png"
+        figures.plot_views(task, ("full", "task"), tuple(sim.CONTEXTS), os.path.join(out_dir, name))
+        md += [f"![{task}: the contexts]({name})", "", f"*{task}: what the policy sees in each context at the start "
+               "of the same episode, through the full view and the task-attention ROI*", ""]
+    with open(os.path.join(out_dir, "CONTEXTS.md"), "w") as f:
+        f.write("\n".join(md) + "\n")
+    log(f"wrote {out_dir}/CONTEXTS.md")
+    return 0
+
 
 
 def main(argv=None):
@@ -396,9 +491,16 @@ def main(argv=None):
     ap.add_argument("--archive", action="store_true", help="copy the finished runs' small files to --to instead")
     ap.add_argument("--to", default=RESULTS_DIR, help=f"where --archive copies to (default: {RESULTS_DIR})")
     ap.add_argument("--out", default="docs", help="where the report is written (default: docs)")
+    ap.add_argument("--contexts", action="store_true", help="evaluate ours and its full view in every context "
+                    "instead, to --out/CONTEXTS.md (Fig. 12)")
+    ap.add_argument("--jobs", type=int, default=1, help="processes for --contexts' evaluations (one torch thread each)")
     a = ap.parse_args(argv)
+    if a.jobs < 1:
+        raise ArgError(f"--jobs must be at least 1, not {a.jobs}")
     if a.archive:
         archive_runs(a.runs, a.to)
+    elif a.contexts:
+        write_contexts(a.runs, a.out, jobs=a.jobs)
     else:
         write_report(a.runs, a.out)
 

@@ -164,6 +164,10 @@ def exploration_range(e_r, ex_r=None):
     return max(float(e_r if ex_r is None else ex_r), EX_MIN)
 
 
+# The world's version, written into each run's eval.json: bumped whenever what a policy sees or meets changes
+# (22: the workcell and the 90 deg camera), so that a policy is evaluated only in the world it trained in.
+WORLD = 22
+
 # ---------------------------------------------------------------- the workcell and its contexts (Sec. 5.1.4, Fig. 12)
 # The workcell, fixed on the table in every context, as boxes (half extents, centre; m): a low fence
 # (the paper's "edge of the tray", Fig. 1) around the training place, a floor-tape line, and spare

@@ -378,7 +378,7 @@ def finish(cfg, sac, curr, e_r_max, device, seconds, log):
     with open(os.path.join(cfg.run_dir, "metrics.csv")) as f:
         trained = sum(1 for _ in f) - 1               # fewer than --train-episodes when it stopped as learned
     result = {"task": cfg.task, "obs": cfg.obs, "curriculum": cfg.curriculum, "context": cfg.context, "roi": cfg.roi,
-              "seed": cfg.seed, "eval_seed": EVAL_SEED + cfg.seed, "train_episodes": trained,
+              "seed": cfg.seed, "eval_seed": EVAL_SEED + cfg.seed, "train_episodes": trained, "world": sim.WORLD,
               "train_minutes": round(seconds / 60, 1), "rows": rows}
     with open(os.path.join(cfg.run_dir, "eval.json"), "w") as f:
         json.dump(result, f, indent=2)

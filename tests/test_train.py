@@ -219,3 +219,21 @@ def test_the_eta_counts_the_updates_still_to_come_during_the_warmup():
     assert tacrl.eta_seconds(0, cfg, [1.0], [], 6.0) == pytest.approx(299 * 1.0 + 280 * 6.0)
     # later, the update phases measured replace the probe
     assert tacrl.eta_seconds(99, cfg, [2.0] * 100, [4.0] * 80, 6.0) == pytest.approx(200 * (2.0 + 4.0))
+
+
+def test_every_context_is_evaluated_once_and_the_table_names_each(tiny_run, tmp_path, monkeypatch):
+    monkeypatch.setattr(sim, "MAX_STEPS", SHORT)
+    monkeypatch.setattr(sim, "CONTEXTS", {k: sim.CONTEXTS[k] for k in ("train", "loc-2")})
+    out = tmp_path / "docs"
+    assert report.write_contexts(tiny_run["dir"], str(out), levels=(1.0,), episodes=1, log=lambda *_: None) == 0
+    text = (out / "CONTEXTS.md").read_text()
+    assert "| peg | task attention (updates 2, warmup 1, batch 8) | loc-2 | 1 |" in text and "| train |" in text
+    assert (out / "fig-peg-contexts.png").stat().st_size > 0 and (out / "fig-peg-context-views.png").stat().st_size > 0
+    cached = json.loads(open(os.path.join(tiny_run["dir"], "eval-ctx-loc-2.json")).read())
+    assert cached["world"] == sim.WORLD and cached["context"] == repr(sim.CONTEXTS["loc-2"])
+    monkeypatch.setattr(tacrl, "evaluate_levels", lambda *a, **k: pytest.fail("evaluated again"))
+    report.write_contexts(tiny_run["dir"], str(out), levels=(1.0,), episodes=1, log=lambda *_: None)
+    # a redefined context is evaluated again
+    monkeypatch.setitem(sim.CONTEXTS, "loc-2", sim.Context(board_xy=(0.6, -0.2), board_yaw=0.3))
+    with pytest.raises(pytest.fail.Exception, match="evaluated again"):
+        report.write_contexts(tiny_run["dir"], str(out), levels=(1.0,), episodes=1, log=lambda *_: None)
