@@ -279,10 +279,23 @@ class ReplayBuffer:
             if f.startswith("ep_") and f.endswith(".npz") and f not in names:
                 os.remove(os.path.join(self.directory, f))
 
-    def sample(self, batch, rng):
+    def sample(self, batch, rng, jitter_s=0.0):
+        """A batch of transitions (o, a, r, o', terminated); with jitter_s, their images jittered (--augment)."""
         idx = rng.integers(0, self.n, batch)
-        return ({k: v[idx] for k, v in self.obs.items()}, self.act[idx], self.rew[idx],
-                {k: v[idx] for k, v in self.next_obs.items()}, self.term[idx])
+        o, o2 = ({k: v[idx] for k, v in d.items()} for d in (self.obs, self.next_obs))
+        if jitter_s and "image" in o:           # o and o' jittered independently, as DrQ does
+            o["image"], o2["image"] = jitter(o["image"], rng, jitter_s), jitter(o2["image"], rng, jitter_s)
+        return o, self.act[idx], self.rew[idx], o2, self.term[idx]
+
+
+def jitter(images, rng, s):
+    """Photometric augmentation of gray images (B, H, W) uint8: each image's brightness, then its contrast about
+    its mean, scaled by U(1 - s, 1 + s), as the brightness and contrast of RAD's colour jitter (Laskin et al.
+    2020). Not the paper's method, which claims to need none: tacrl's --augment (README difference 17)."""
+    x = images.astype(np.float32) * rng.uniform(1 - s, 1 + s, (len(images), 1, 1)).astype(np.float32)
+    m = x.mean(axis=(1, 2), keepdims=True)
+    x = (x - m) * rng.uniform(1 - s, 1 + s, (len(images), 1, 1)).astype(np.float32) + m
+    return np.clip(np.rint(x), 0, 255).astype(np.uint8)
 
 
 # ---------------------------------------------------------------- soft actor-critic

@@ -64,14 +64,13 @@ class Config:
     curriculum: str = train_opt("adaptive", "error curriculum (Eq. 16, Fig. 10); ex10: Fig. 9's", curriculum.KINDS)
     vanilla: bool = train_opt(False, "the vanilla baseline: no trajectory guidance, the residual acts alone")
     critic: str = train_opt("privileged", "privileged: also X - X_g (README difference 13)", ("privileged", "multimodal"))
+    augment: float = train_opt(0.0, "image jitter s: brightness, contrast x U(1-s, 1+s) (README difference 17)", bounds=(0, 1))
     updates: int = train_opt(200, "SAC gradient steps after each episode (Sec. 5.1.1: 200)", bounds=(0, None))
-    warmup: int = train_opt(20, "episodes of random actions before the first update (the authors' loop: 20)",
-                            bounds=(0, None))
+    warmup: int = train_opt(20, "random-action episodes before the first update (the authors' loop: 20)", bounds=(0, None))
     batch: int = train_opt(64, "SAC batch size", bounds=(1, None))
     buffer: int = train_opt(50000, "replay capacity, transitions (at least an episode and a batch)", bounds=(1, None))
     lr: float = train_opt(3e-4, "Adam step size of actor, critics and temperature", bounds=(0, 1), open_bounds=True)
-    gamma: float = train_opt(0.95, "discount (0.99 let the critics thrash: README difference 10)", bounds=(0, 1),
-                             open_bounds=True)
+    gamma: float = train_opt(0.95, "discount (0.99 let the critics thrash: README difference 10)", bounds=(0, 1), open_bounds=True)
     target_entropy: float = train_opt(-6.0, "SAC's entropy target (the usual -|A|)")
     eval_levels: str = train_opt("5,10,15,20", "error ranges (mm) evaluated after training (Table 2)")
     run_dir: str = train_opt("", "run directory, new or empty (default: runs/<task>-<obs>-...-s<seed>)")
@@ -159,12 +158,13 @@ def check(cfg):
 
 
 def default_run_dir(cfg):
-    """runs/<task>-[vanilla-]<obs>-<curriculum>[-e<E_r mm>][-roi-<roi>][-<critic>]-s<seed>: the flags of
+    """runs/<task>-[vanilla-]<obs>-<curriculum>[-e<E_r mm>][-roi-<roi>][-<critic>][-aug<s>]-s<seed>: the flags of
     the baselines and ablations are in its name, so that no run overwrites another's directory."""
     name = f"{cfg.task}-{'vanilla-' if cfg.vanilla else ''}{cfg.obs}-{cfg.curriculum}"
     name += f"-e{cfg.error_mm:g}" if cfg.error_mm != Config.error_mm else ""
     name += f"-roi-{cfg.roi}" if cfg.roi != "task" else ""
     name += f"-{cfg.critic}" if cfg.critic != Config.critic else ""
+    name += f"-aug{cfg.augment:g}" if cfg.augment else ""
     return os.path.join("runs", f"{name}-s{cfg.seed}")
 
 
@@ -327,7 +327,7 @@ def train(cfg, log=lambda msg: print(msg, flush=True)):
             total_steps += len(episode["act"])
             env_s.append(time.time() - t0)
             t0 = time.time()
-            losses = [sac.update(buf.sample(cfg.batch, sample_rng))     # line 10: update the policy with SAC
+            losses = [sac.update(buf.sample(cfg.batch, sample_rng, cfg.augment))     # line 10: update the policy with SAC
                       for _ in range(cfg.updates if ep >= cfg.warmup else 0)]
             update_s += [time.time() - t0] if losses else []
             curr.update(bool(episode["term"][-1]))                     # line 11: generate the curriculum, Eq. 16

@@ -67,6 +67,23 @@ def test_replay_keeps_uint8_images_and_pairs_o_with_o_next():
     o, a, r, o2, term = buf.sample(200, rng)
     np.testing.assert_array_equal(o2["pose_hist"][:, 0, 0], o["pose_hist"][:, 0, 0] + 1)
     assert set(term[r == 19]) == {1.0} and set(term[r != 19]) == {0.0}
+    # --augment: the sampled images jittered, o and o' each their own way; the buffer's own left as they were
+    stored = buf.obs["image"].copy()
+    o, _, _, o2, _ = buf.sample(200, np.random.default_rng(3), jitter_s=0.4)
+    o_plain, _, _, o2_plain, _ = buf.sample(200, np.random.default_rng(3))
+    np.testing.assert_array_equal(buf.obs["image"], stored)
+    np.testing.assert_array_equal(o["pose_hist"], o_plain["pose_hist"])
+    assert o["image"].dtype == np.uint8 and not np.array_equal(o["image"], o_plain["image"])
+
+
+def test_jitter_scales_brightness_and_contrast_within_its_range():
+    img = np.full((2000, 8, 8), 100, np.uint8)
+    img[:, :4] = 50                                     # mean 75, two levels 25 either side of it
+    out = policy.jitter(img, np.random.default_rng(0), 0.4).astype(float)
+    mean = out.reshape(len(out), -1).mean(1)            # brightness: 75 x U(0.6, 1.4)
+    assert 0.6 * 75 - 1 <= mean.min() < 0.65 * 75 and 1.35 * 75 < mean.max() <= 1.4 * 75 + 1
+    spread = (out[:, 7, 0] - out[:, 0, 0]) / 50          # contrast x brightness: within U(0.6, 1.4)^2
+    assert 0.36 - 0.03 <= spread.min() < 0.45 and 1.8 < spread.max() <= 1.96 + 0.03
 
 
 def test_replay_files_rebuild_the_ring_exactly_and_keep_only_what_it_holds(tmp_path):
