@@ -399,6 +399,23 @@ def goal_applies(ctx):
     return ctx.startswith("loc-") or (c.objects and not c.on_board)
 
 
+def describe(name):
+    """One line on what a context changes against training's."""
+    c, t = sim.CONTEXTS[name], sim.CONTEXTS["train"]
+    what = []
+    if (c.board_xy, c.board_yaw) != (t.board_xy, t.board_yaw):
+        what.append(f"the board {100 * np.hypot(*np.subtract(c.board_xy, t.board_xy)):.0f} cm away, turned "
+                    f"{c.board_yaw - t.board_yaw:+.2f} rad")
+    if c.objects:
+        what.append(f"{len(c.objects)} objects " + ("on the board, inside the task ROI" if c.on_board else
+                                                    "beside the board, outside the task ROI at every error"))
+    if c.light != t.light:
+        what.append("another light: " + ", ".join(f"{k} {v}" for k, v in c.light))
+    if (c.table_rgba, c.board_rgba) != (t.table_rgba, t.board_rgba):
+        what.append(f"table colour {c.table_rgba[:3]}, board {c.board_rgba[:3]}")
+    return "; ".join(what) or "the training scene"
+
+
 def context_rows(job):
     """One (run dir, context, levels, episodes) evaluation, cached in the run dir under the context's definition
     and the world's version (a context redefined, or another world, is evaluated again). Runs in a worker."""
@@ -453,7 +470,9 @@ def write_contexts(patterns, out_dir, levels=LEVELS, episodes=20, jobs=1, log=pr
           "| task | view | context | seeds | " + " | ".join(f"{mm:g} mm" for mm in levels) + " | CR | goal |",
           "|---" * (6 + len(levels)) + "|"]
     bars = {}
-    for (task, view, ctx), seeds in table.items():
+    order = lambda k: (k[0], not k[1].startswith(VIEWS["task"]), k[1], list(sim.CONTEXTS).index(k[2]))  # noqa: E731
+    for task, view, ctx in sorted(table, key=order):          # task attention first, the contexts as defined
+        seeds = table[(task, view, ctx)]
         sr = np.array([[x["success_rate"] for x in rows] for rows in seeds])          # (seeds, levels)
         cr = np.array([np.mean([x["cumulative_reward"][0] for x in rows]) for rows in seeds])
         bars.setdefault(task, {}).setdefault(view, {})[ctx] = [float(cr.mean()), float(cr.std())]
@@ -466,6 +485,7 @@ def write_contexts(patterns, out_dir, levels=LEVELS, episodes=20, jobs=1, log=pr
         cells = [f"{m:.2f} ({lo:.2f}-{hi:.2f})" if len(sr) > 1 else f"{m:.2f}"
                  for m, lo, hi in zip(sr.mean(0), sr.min(0), sr.max(0))]
         md.append(f"| {task} | {view} | {ctx} | {len(seeds)} | {' | '.join(cells)} | {cr.mean():.1f} | {goal} |")
+    md += ["", "The contexts:", ""] + [f"- `{name}`: {describe(name)}" for name in sim.CONTEXTS]
     md += ["", "The paper (real robot, Fig. 12, average cumulative reward): task attention 61.19 -> 54.73 (new "
            "background), 69.23 -> 46.46 (new location); full view 61.12 -> -23.06 and 59.51 -> -14.65.", ""]
     for task, by_view in bars.items():
