@@ -456,11 +456,14 @@ def write_contexts(patterns, out_dir, levels=LEVELS, episodes=20, jobs=1, log=pr
             results = list(ex.map(context_rows, jobs_list))
     else:
         results = [context_rows(j) for j in jobs_list]
-    table = {}                 # (task, roi, context) -> [rows of each seed]
+    table, trained = {}, {}    # (task, view, context) -> [rows of each seed]; (task, view) -> its seeds' training
     for (d, ctx, _, _), rows in zip(jobs_list, results):
         r = next(r for r in runs if r["dir"] == d)
         view = VIEWS[r["cfg"]["roi"]] + method_of({**r["cfg"], "roi": "task", "error_mm": 20.0})[4:]   # + other settings
         table.setdefault((r["cfg"]["task"], view, ctx), []).append(rows)
+        if ctx == "train":                   # the training each row's seeds had: the same rule and cap for every view
+            trained.setdefault((r["cfg"]["task"], view), []).append(f"seed {r['cfg']['seed']}: "
+                                                                   f"{r['eval']['train_episodes']} episodes")
     md = ["# Context generalization: trained in `train`, tested in every context", "",
           f"Made by `python report.py --contexts \"{patterns}\"`. Every context is defined in `sim.CONTEXTS` "
           f"(world {sim.WORLD}); the figures below show what each looks like. Each cell: success rate, mean over "
@@ -485,6 +488,8 @@ def write_contexts(patterns, out_dir, levels=LEVELS, episodes=20, jobs=1, log=pr
         cells = [f"{m:.2f} ({lo:.2f}-{hi:.2f})" if len(sr) > 1 else f"{m:.2f}"
                  for m, lo, hi in zip(sr.mean(0), sr.min(0), sr.max(0))]
         md.append(f"| {task} | {view} | {ctx} | {len(seeds)} | {' | '.join(cells)} | {cr.mean():.1f} | {goal} |")
+    md += ["", "Training (each run stops when learned, at most its --train-episodes):", ""]
+    md += [f"- {task}, {view}: {', '.join(v)}" for (task, view), v in sorted(trained.items())]
     md += ["", "The contexts:", ""] + [f"- `{name}`: {describe(name)}" for name in sim.CONTEXTS]
     md += ["", "The paper (real robot, Fig. 12, average cumulative reward): task attention 61.19 -> 54.73 (new "
            "background), 69.23 -> 46.46 (new location); full view 61.12 -> -23.06 and 59.51 -> -14.65.", ""]
