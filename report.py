@@ -494,12 +494,12 @@ def write_contexts(patterns, out_dir, levels=LEVELS, episodes=20, jobs=1, log=pr
     md += ["", "The paper (real robot, Fig. 12, average cumulative reward): task attention 61.19 -> 54.73 (new "
            "background), 69.23 -> 46.46 (new location); full view 61.12 -> -23.06 and 59.51 -> -14.65.", ""]
     for task, by_view in bars.items():
-        name = f"fig-{task}-contexts.png"
+        name = f"ctx-{task}-bars.png"
         figures.plot_context_bars(by_view, os.path.join(out_dir, name), f"{task}: trained in 'train', tested in each context")
         md += [f"![{task}: Fig. 12]({name})", "", f"*{task}: mean cumulative reward per context (bars: spread over "
                "seeds), task attention against the full view (the paper's Fig. 12)*", ""]
     for task in sorted({t for t, _, _ in table}):
-        name = f"fig-{task}-context-views.png"
+        name = f"ctx-{task}-views.png"
         figures.plot_views(task, ("full", "task"), tuple(sim.CONTEXTS), os.path.join(out_dir, name))
         md += [f"![{task}: the contexts]({name})", "", f"*{task}: what the policy sees in each context at the start "
                "of the same episode, through the full view and the task-attention ROI*", ""]

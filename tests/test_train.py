@@ -228,7 +228,7 @@ def test_every_context_is_evaluated_once_and_the_table_names_each(tiny_run, tmp_
     assert report.write_contexts(tiny_run["dir"], str(out), levels=(1.0,), episodes=1, log=lambda *_: None) == 0
     text = (out / "CONTEXTS.md").read_text()
     assert "| peg | task attention (updates 2, warmup 1, batch 8) | loc-2 | 1 |" in text and "| train |" in text
-    assert (out / "fig-peg-contexts.png").stat().st_size > 0 and (out / "fig-peg-context-views.png").stat().st_size > 0
+    assert (out / "ctx-peg-bars.png").stat().st_size > 0 and (out / "ctx-peg-views.png").stat().st_size > 0
     cached = json.loads(open(os.path.join(tiny_run["dir"], "eval-ctx-loc-2.json")).read())
     assert cached["world"] == sim.WORLD and cached["context"] == repr(sim.CONTEXTS["loc-2"])
     monkeypatch.setattr(tacrl, "evaluate_levels", lambda *a, **k: pytest.fail("evaluated again"))
