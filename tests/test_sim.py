@@ -1,5 +1,7 @@
 """The world of sim.py: geometry that really blocks, a wrist sensor that reads what is pressed,
 observations that carry no ground truth, the reward and the env's interface."""
+import functools
+
 import numpy as np
 import pytest
 
@@ -196,6 +198,7 @@ def test_roi_presets(roi):
     env.close()
 
 
+@functools.lru_cache(maxsize=None)      # the training scene's is compared with each context's
 def first_obs(ctx, roi="task"):
     with sim.AssemblyEnv("peg", context=ctx, roi=roi) as env:
         obs, _ = env.reset(seed=0, options={"error": np.zeros(4)})
