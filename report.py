@@ -423,8 +423,9 @@ def context_rows(job):
     torch.set_num_threads(1)
     key = {"world": sim.WORLD, "context": repr(sim.CONTEXTS[ctx]), "levels": list(levels), "episodes": episodes}
     path = os.path.join(d, f"eval-ctx-{ctx}.json")
-    if os.path.exists(path) and {k: v for k, v in read_json(path).items() if k != "rows"} == key:
-        return read_json(path)["rows"]
+    cached = read_json(path) if os.path.exists(path) else {}
+    if {k: v for k, v in cached.items() if k != "rows"} == key:
+        return cached["rows"]
     run = load_run(d)
     cfg, act = run["cfg"], tacrl.load_policy(os.path.join(d, "policy.pt"), run["cfg"]["task"])
     with tacrl.eval_env(cfg["task"], act, ctx, cfg["roi"], cfg["clearance_mm"]) as env:
@@ -441,9 +442,9 @@ def write_contexts(patterns, out_dir, levels=LEVELS, episodes=20, jobs=1, log=pr
     cli.check_dir_writable(out_dir, "--out")
     runs = [load_run(d) for d in match_runs(patterns)]
     os.makedirs(out_dir, exist_ok=True)
+    setting = lambda cfg: method_of({**cfg, "roi": "task", "error_mm": 20.0})   # noqa: E731  'ours' + any other settings
     runs = [r for r in runs if r["eval"] and r["eval"].get("world") == sim.WORLD and r["cfg"]["roi"] in VIEWS
-            and method_of({**r["cfg"], "roi": "task", "error_mm": 20.0}).startswith("ours")
-            and r["cfg"]["context"] == "train"]
+            and setting(r["cfg"]).startswith("ours") and r["cfg"]["context"] == "train"]
     if not runs:
         raise ArgError(f"{patterns!r}: no finished run of ours or its full view made in this world (world {sim.WORLD})")
     jobs_list = [(r["dir"], ctx, tuple(levels), episodes) for r in runs for ctx in sim.CONTEXTS]
@@ -459,7 +460,7 @@ def write_contexts(patterns, out_dir, levels=LEVELS, episodes=20, jobs=1, log=pr
     table, trained = {}, {}    # (task, view, context) -> [rows of each seed]; (task, view) -> its seeds' training
     for (d, ctx, _, _), rows in zip(jobs_list, results):
         r = next(r for r in runs if r["dir"] == d)
-        view = VIEWS[r["cfg"]["roi"]] + method_of({**r["cfg"], "roi": "task", "error_mm": 20.0})[4:]   # + other settings
+        view = VIEWS[r["cfg"]["roi"]] + setting(r["cfg"])[len("ours"):]
         table.setdefault((r["cfg"]["task"], view, ctx), []).append(rows)
         if ctx == "train":                   # the training each row's seeds had: the same rule and cap for every view
             trained.setdefault((r["cfg"]["task"], view), []).append(f"seed {r['cfg']['seed']}: "
@@ -507,7 +508,6 @@ def write_contexts(patterns, out_dir, levels=LEVELS, episodes=20, jobs=1, log=pr
         f.write("\n".join(md) + "\n")
     log(f"wrote {out_dir}/CONTEXTS.md")
     return 0
-
 
 
 def main(argv=None):

@@ -150,7 +150,8 @@ HOLDER_LENGTH = 0.040
 ROBOT_HOME = [np.pi, -np.pi / 2, np.pi / 2, -np.pi / 2, -np.pi / 2, 0.0]
 R_DOWN = np.diag([1.0, -1.0, -1.0])                  # tool z down, tool x along world x
 
-# full camera view: 800 x 800 px, 60 deg (the paper's ROI-800*800); ROIs are windows of it
+# full camera view: 800 x 800 px (the paper's ROI-800*800), 90 deg, a wide-angle USB camera's (at 60 deg it
+# showed the board and little else: README difference 14); ROIs are windows of it
 CAM_FULL, CAM_FOV, CAM_NEAR, CAM_FAR = 800, 90.0, 0.01, 2.0
 ROI_PRESETS = {"full": (800, 800), "300": (300, 300), "200": (200, 200), "100x160": (100, 160)}
 
@@ -429,9 +430,9 @@ def display_problem():
 class World:
     """The PyBullet scene of one context: table and workcell, UR5 with tool, sensor and camera, one task
     board, the context's objects. One DIRECT (or GUI) client of its own; every call names it. `rebuild`
-    empties the simulation and builds the scene again: PyBullet keeps history across resetJointState and resetBase... (contact
-    caches, solver warm starts: bullet3 issues 2442, 4387), so an episode run after others would
-    differ from the same episode in a fresh world; after a rebuild it does not."""
+    empties the simulation and builds the scene again: PyBullet keeps history across resetJointState and
+    resetBase... (contact caches, solver warm starts: bullet3 issues 2442, 4387), so an episode run after
+    others would differ from the same episode in a fresh world; after a rebuild it does not."""
 
     def __init__(self, task="peg", clearance=1e-4, gui=False, ft_noise=True, image_noise=True, context=None):
         self.task, self.clearance, self.gui = task, clearance, gui
