@@ -115,7 +115,7 @@ def plot_views(task, rois, contexts, out, error=(0.015, -0.010, 0.0, 0.05)):
         for j, ctx in enumerate(contexts):
             env = sim.AssemblyEnv(task, ctx, roi=roi)
             try:
-                obs, _ = env.reset(options={"error": np.array(error)})
+                obs, _ = env.reset(seed=0, options={"error": np.array(error)})   # the same sensor noise each time
             finally:
                 env.close()
             ax[i, j].imshow(obs["image"], cmap="gray", vmin=0, vmax=255)   # (80, 80) uint8
