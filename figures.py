@@ -38,7 +38,7 @@ def plot_curves(metrics_path, out, title=""):
         ax.set_ylabel(CURVES[key])
         ax.grid(alpha=0.3)
     fig.suptitle(title)
-    fig.tight_layout()
+    fig.subplots_adjust(left=0.045, right=0.99, bottom=0.15, top=0.87, wspace=0.28)   # (tight_layout: a 2nd draw)
     fig.savefig(out, dpi=110)
     plt.close(fig)
 

@@ -66,7 +66,8 @@ def train_seeds(seeds, argv):
     """Start the runs, at most `parallel` at a time; a progress line a minute. Raises cli.Failed naming
     the seeds whose runs failed."""
     parallel, jobs = seed_commands(seeds, argv)
-    todo, running, failed, t0, shown = list(jobs), {}, [], time.time(), 0.0
+    todo, running, failed, t0 = list(jobs), {}, [], time.time()
+    shown = t0                                       # the first progress line after a minute
     while todo or running:
         while todo and len(running) < parallel:
             s, run_dir, cmd, env = todo.pop(0)
@@ -74,24 +75,28 @@ def train_seeds(seeds, argv):
             with open(os.path.join(run_dir, cli.LOG), "a") as log:
                 running[s] = (subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT, env=env), run_dir)
             print(f"seed {s}: started, {run_dir}/{cli.LOG}", flush=True)
-        time.sleep(1)
-        status = []
+        time.sleep(0.2)                          # a run that ends is seen at once, its log read once a minute
+        if time.time() - shown > 60:
+            shown = time.time()
+            status = "  ".join(last_episode(s, run_dir) for s, (_, run_dir) in running.items())
+            print(f"[{cli.fmt_time(shown - t0)}] episodes: {status}", flush=True)
         for s, (proc, run_dir) in list(running.items()):
-            with open(os.path.join(run_dir, cli.LOG)) as f:
-                last = [ln for ln in f.read().splitlines() if ln.startswith("ep ")]
-            status.append(f"s{s} {last[-1].split()[1] if last else '-'}")
             if proc.poll() is not None:
                 del running[s]
                 failed += [(s, proc.returncode)] if proc.returncode else []
                 print(f"seed {s}: finished with exit code {proc.returncode} ({cli.fmt_time(time.time() - t0)})",
                       flush=True)
-        if status and time.time() - shown > 60:
-            shown = time.time()
-            print(f"[{cli.fmt_time(time.time() - t0)}] episodes: {'  '.join(status)}", flush=True)
     if failed:
         raise cli.Failed(f"the runs of seed{'s' * (len(failed) > 1)} {', '.join(str(s) for s, _ in failed)} failed "
                          f"(exit code{'s' * (len(failed) > 1)} {', '.join(str(c) for _, c in failed)}): see their "
                          f"{cli.LOG}")
+
+
+def last_episode(s, run_dir):
+    """'s<seed> <episode>/<of>' from the run's log, '-' before its first episode."""
+    with open(os.path.join(run_dir, cli.LOG)) as f:
+        last = [ln for ln in f.read().splitlines() if ln.startswith("ep ")]
+    return f"s{s} {last[-1].split()[1] if last else '-'}"
 
 
 def parse_seeds(text):

@@ -13,11 +13,6 @@ import tacrl
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
-def run(*args):
-    return subprocess.run([sys.executable, os.path.join(ROOT, "tacrl.py"), *args], capture_output=True, text=True,
-                          cwd=ROOT, timeout=120)
-
-
 @pytest.mark.parametrize("args", [["--task", "screw"], ["--error-mm", "-3"], ["--episodes", "0"],
                                   ["--context", "moon"], ["--bogus"], ["--episodes", "many"],
                                   ["--video", "out.avi"], ["--obs", "smell"], ["--curriculum", "fast"],
@@ -34,7 +29,8 @@ def test_bad_arguments_exit_2_with_one_line(args, capsys):
 
 
 def test_bad_argument_through_the_shell():
-    r = run("--task", "screw")
+    r = subprocess.run([sys.executable, os.path.join(ROOT, "tacrl.py"), "--task", "screw"], capture_output=True,
+                       text=True, cwd=ROOT, timeout=120)
     assert r.returncode == 2
     assert r.stderr.strip().count("\n") == 0 and r.stderr.startswith("tacrl: error:")
     assert "Traceback" not in r.stderr
@@ -49,11 +45,11 @@ def test_each_flag_is_described_once_in_help(capsys):
         assert flag in text and "".join(f.metadata["help"].split()) in text, flag
 
 
-def test_initial_policy_row_and_json(tmp_path):
+def test_initial_policy_row_and_json(tmp_path, capsys):
     out = tmp_path / "row.json"
-    r = run("--task", "peg", "--eval", "initial", "--error-mm", "0", "--episodes", "1", "--json", str(out))
-    assert r.returncode == 0, r.stderr
-    assert "SR" in r.stdout and "initial peg 0mm" in r.stdout
+    assert tacrl.main(["--task", "peg", "--eval", "initial", "--error-mm", "0", "--episodes", "1", "--json", str(out)]) == 0
+    stdout = capsys.readouterr().out
+    assert "SR" in stdout and "initial peg 0mm" in stdout
     row = json.loads(out.read_text())
     assert row["success_rate"] == 1.0 and row["episodes"] == 1
     assert 5.0 < row["completion_time_s"][0] < 24.0

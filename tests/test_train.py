@@ -1,5 +1,5 @@
-"""Algorithm 1 end to end in a tiny configuration (12 episodes of at most 30 steps, 2 updates each):
-one run killed in the middle of episode 7's updates and resumed, which must come out as the same run
+"""Algorithm 1 end to end in a tiny configuration (8 episodes of at most 15 steps, 2 updates each):
+one run killed in the middle of episode 5's updates and resumed, which must come out as the same run
 uninterrupted, serves the tests of what a run leaves behind; then its policy's evaluation, extending
 it, the archive and the report made from it."""
 import csv
@@ -17,9 +17,10 @@ import report
 import sim
 import tacrl
 
-TINY = ["--task", "peg", "--error-mm", "1", "--train-episodes", "12", "--warmup", "1", "--updates", "2",
+TINY = ["--task", "peg", "--error-mm", "1", "--train-episodes", "8", "--warmup", "1", "--updates", "2",
         "--batch", "8", "--episodes", "1", "--eval-levels", "1", "--buffer", "40"]
-SHORT = 30           # steps an episode, not 120: the untrained policy runs every one to the limit
+SHORT = 15           # steps an episode, not 120: the untrained policy runs every one to the limit, and
+                     # TINY's 40-transition ring wraps in mid-episode
 TIMES = ("env_s", "update_s", "elapsed_s")
 
 
@@ -43,14 +44,14 @@ def tiny_run(tmp_path_factory):
     first, second, calls = [], [], []
     real_update = policy.SAC.update
 
-    def killed_in_episode_7(sac, batch):      # updates run from episode 2, two an episode: call 11 is in episode 7
+    def killed_in_episode_5(sac, batch):      # updates run from episode 2, two an episode: call 7 is in episode 5
         calls.append(np.any(batch[1]))       # (not the start-up probe's calls, whose actions are all zero)
-        if sum(calls) == 11:
+        if sum(calls) == 7:
             raise KeyboardInterrupt            # as a kill: episode 7's replay file is written, its checkpoint not
         return real_update(sac, batch)
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(sim, "MAX_STEPS", SHORT)
-        mp.setattr(policy.SAC, "update", killed_in_episode_7)
+        mp.setattr(policy.SAC, "update", killed_in_episode_5)
         with pytest.raises(KeyboardInterrupt, match="--resume"):
             tacrl.train(tacrl.parse_args(TINY + ["--run-dir", run_dir]), log=first.append)
         replay_at_kill = sorted(os.listdir(os.path.join(run_dir, "replay")))
@@ -66,7 +67,7 @@ def test_a_run_killed_and_resumed_is_the_same_run_as_one_never_stopped(tiny_run,
     # each episode is simulated in a new world and the replay buffer is rebuilt slot by slot, so the
     # resumed run repeats the uninterrupted one to the last digit (and two runs of a seed are the same)
     strip = lambda rows: [{k: v for k, v in r.items() if k not in TIMES} for r in rows]   # noqa: E731
-    assert len(uninterrupted) == 12 and any(float(r["q_loss"]) > 0 for r in uninterrupted)
+    assert len(uninterrupted) == 8 and any(float(r["q_loss"]) > 0 for r in uninterrupted)
     assert strip(tiny_run["rows"]) == strip(uninterrupted)
 
 
@@ -76,12 +77,12 @@ def test_start_up_lines_give_the_config_and_the_parameter_counts(tiny_run):
 
 
 def test_a_kill_loses_only_the_episode_in_flight(tiny_run):
-    assert [int(r["episode"]) for r in tiny_run["rows_at_kill"]] == list(range(1, 7))
-    assert tiny_run["replay_at_kill"][-1] == "ep_000007.npz"       # written, but not in the checkpoint
-    assert any(x.startswith(f"resumed {tiny_run['dir']} at episode 6 of 12: ") for x in tiny_run["second"])
+    assert [int(r["episode"]) for r in tiny_run["rows_at_kill"]] == list(range(1, 5))
+    assert tiny_run["replay_at_kill"][-1] == "ep_000005.npz"       # written, but not in the checkpoint
+    assert any(x.startswith(f"resumed {tiny_run['dir']} at episode 4 of 8: ") for x in tiny_run["second"])
     episodes = [x.split()[1] for x in tiny_run["second"] if x.startswith("ep ")]
-    assert episodes == [f"{k}/12" for k in range(7, 13)]
-    assert [int(x["episode"]) for x in tiny_run["rows"]] == list(range(1, 13))
+    assert episodes == [f"{k}/8" for k in range(5, 9)]
+    assert [int(x["episode"]) for x in tiny_run["rows"]] == list(range(1, 9))
 
 
 def test_a_finished_run_leaves_every_file(tiny_run):
@@ -90,14 +91,14 @@ def test_a_finished_run_leaves_every_file(tiny_run):
 
 
 def test_updates_start_after_the_warmup(tiny_run):
-    assert [int(x["updates"]) for x in tiny_run["rows"]] == [0] + [2] * 11
+    assert [int(x["updates"]) for x in tiny_run["rows"]] == [0] + [2] * 7
 
 
 def test_the_replay_on_disk_is_what_the_ring_buffer_holds(tiny_run):
     steps = [int(x["steps"]) for x in tiny_run["rows"]]
-    keep = next(i for i in range(12, -1, -1) if sum(steps[i:]) >= 40 or i == 0)     # newest that fill 40
+    keep = next(i for i in range(8, -1, -1) if sum(steps[i:]) >= 40 or i == 0)     # newest that fill 40
     kept = sorted(os.listdir(os.path.join(tiny_run["dir"], "replay")))
-    assert kept == [f"ep_{i + 1:06d}.npz" for i in range(keep, 12)], (steps, kept)
+    assert kept == [f"ep_{i + 1:06d}.npz" for i in range(keep, 8)], (steps, kept)
 
 
 def test_a_run_dir_that_holds_a_run_is_not_started_over(tiny_run, capsys, monkeypatch):
@@ -118,7 +119,8 @@ def test_evaluating_policy_pt_repeats_eval_json(tiny_run, tmp_path, monkeypatch)
     assert {k: ev["rows"][0][k] for k in keys} == {k: json.loads(again.read_text())[k] for k in keys}
 
 
-def test_a_policy_is_evaluated_with_the_exploration_range_it_trained_with(tiny_run, tmp_path, capsys):
+def test_a_policy_is_evaluated_with_the_exploration_range_it_trained_with(tiny_run, tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(sim, "MAX_STEPS", SHORT)
     pol = str(tmp_path / "policy.pt")
     d = torch.load(os.path.join(tiny_run["dir"], "policy.pt"), weights_only=True)
     assert d["ex_r"] <= 0.002 and tiny_run["eval"]["rows"][0]["ex_r_mm"] == 2.0     # where it ended, floored at 2 mm
@@ -186,12 +188,12 @@ def test_a_finished_run_is_not_resumed_but_can_be_extended(tiny_run, tmp_path, c
     assert "the run is finished; extend it with --train-episodes N" in capsys.readouterr().err
     run_dir = str(tmp_path / "run")
     shutil.copytree(tiny_run["dir"], run_dir)
-    assert tacrl.main(["--resume", run_dir, "--train-episodes", "13"]) == 0
-    assert "the finished run's files are now *-ep12.*" in capsys.readouterr().out
-    assert [int(r["episode"]) for r in metrics(run_dir)] == list(range(1, 14))
-    for f in ("policy-ep12.pt", "eval-ep12.json", "curves-ep12.png", "policy.pt", "eval.json"):
+    assert tacrl.main(["--resume", run_dir, "--train-episodes", "9"]) == 0
+    assert "the finished run's files are now *-ep8.*" in capsys.readouterr().out
+    assert [int(r["episode"]) for r in metrics(run_dir)] == list(range(1, 10))
+    for f in ("policy-ep8.pt", "eval-ep8.json", "curves-ep8.png", "policy.pt", "eval.json"):
         assert os.path.exists(os.path.join(run_dir, f)), f
-    assert json.load(open(os.path.join(run_dir, "config.json")))["train_episodes"] == 13
+    assert json.load(open(os.path.join(run_dir, "config.json")))["train_episodes"] == 9
 
 
 def test_a_run_stops_when_the_greedy_policy_passes_validation_twice(tmp_path, monkeypatch):
