@@ -8,6 +8,7 @@ import csv
 import dataclasses
 import math
 import os
+import re
 import signal
 import sys
 import tempfile
@@ -135,6 +136,17 @@ def write_log(path, columns, rows):
     with open(path, "w", newline="") as f:
         csv.DictWriter(f, columns).writeheader()
         csv.DictWriter(f, columns).writerows(rows)
+
+
+def set_aside(run_dir, tag):
+    """Rename what a finished run's policy made (policy.pt, curves.png, eval.json and every evaluation cached
+    as eval*.json) to NAME-<tag>.EXT when the run is extended, so that its new policy is evaluated anew;
+    files set aside before (NAME-epN.EXT) stay as they are."""
+    for name in sorted(os.listdir(run_dir)):
+        stem, ext = os.path.splitext(name)
+        if name in ("policy.pt", "curves.png") or (stem.startswith("eval") and ext == ".json"
+                                                  and not re.search(r"-ep\d+$", stem)):
+            os.replace(os.path.join(run_dir, name), os.path.join(run_dir, f"{stem}-{tag}{ext}"))
 
 
 def fmt_time(s):

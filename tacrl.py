@@ -264,8 +264,8 @@ def start_run(cfg, device, sac, curr, env, sample_rng, buf, log):
         raise ArgError(f"--resume {cfg.run_dir!r}: cannot continue the run: {cli.describe(e)}")
     cli.write_log(metrics, METRICS, rows)
     stop = (stop[0], 0) if finished else stop         # extended: validate anew, and keep what it wrote
-    for name in ("policy.pt", "eval.json", "curves.png") if finished else ():
-        os.replace(os.path.join(cfg.run_dir, name), os.path.join(cfg.run_dir, name.replace(".", f"-ep{start}.")))
+    if finished:                                      # its policy's files and cached evaluations: *-epN.*
+        cli.set_aside(cfg.run_dir, f"ep{start}")
     if not start or finished:
         with open(os.path.join(cfg.run_dir, "config.json"), "w") as f:
             json.dump({k: v for k, v in asdict(cfg).items() if k != "resume"}, f, indent=2)

@@ -188,11 +188,14 @@ def test_a_finished_run_is_not_resumed_but_can_be_extended(tiny_run, tmp_path, c
     assert "the run is finished; extend it with --train-episodes N" in capsys.readouterr().err
     run_dir = str(tmp_path / "run")
     shutil.copytree(tiny_run["dir"], run_dir)
+    for cached in ("eval-ctx-loc-2.json", "eval-bg-light-1mm.json"):     # evaluations of the old policy
+        shutil.copy(os.path.join(run_dir, "eval.json"), os.path.join(run_dir, cached))
     assert tacrl.main(["--resume", run_dir, "--train-episodes", "9"]) == 0
     assert "the finished run's files are now *-ep8.*" in capsys.readouterr().out
     assert [int(r["episode"]) for r in metrics(run_dir)] == list(range(1, 10))
-    for f in ("policy-ep8.pt", "eval-ep8.json", "curves-ep8.png", "policy.pt", "eval.json"):
-        assert os.path.exists(os.path.join(run_dir, f)), f
+    assert sorted(f for f in os.listdir(run_dir) if f.startswith(("policy", "eval", "curves"))) == [
+        "curves-ep8.png", "curves.png", "eval-bg-light-1mm-ep8.json", "eval-ctx-loc-2-ep8.json", "eval-ep8.json",
+        "eval.json", "policy-ep8.pt", "policy.pt"]
     assert json.load(open(os.path.join(run_dir, "config.json")))["train_episodes"] == 9
 
 
