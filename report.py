@@ -193,13 +193,34 @@ def same_file(a, b):
         return fa.read() == fb.read()
 
 
+def same_run(d, to):
+    """'same' when the archive `to` holds run d, 'earlier' when it holds d as it was before it was extended
+    (--resume --train-episodes: the same config but for what a resume may set and where it lives, its
+    metrics a prefix of d's), else None (another run, or a damaged archive)."""
+    if all(os.path.exists(os.path.join(to, f)) and same_file(os.path.join(d, f), os.path.join(to, f))
+           for f in ("config.json", "metrics.csv", "policy.pt")):
+        return "same"
+    cfgs, rows = [], []
+    try:
+        for x in (d, to):
+            cfgs.append({k: v for k, v in read_json(os.path.join(x, "config.json")).items()
+                         if k not in (*tacrl.RESUME_MAY_SET, "run_dir")})        # (a run dir may move)
+            with open(os.path.join(x, "metrics.csv")) as f:
+                rows.append(list(csv.DictReader(f)))
+    except (OSError, ValueError, AttributeError):
+        return None
+    return "earlier" if cfgs[0] == cfgs[1] and 0 < len(rows[1]) < len(rows[0]) and rows[0][:len(rows[1])] == rows[1] \
+        else None
+
+
 def archive_runs(patterns, dest=RESULTS_DIR, log=print):
     """Copy what the report reads of each finished run (eval.json written) to dest/<run name>/: under
     1 MB a run (policy.pt), where the checkpoint and the replay buffer that stay behind are hundreds of MB.
     A run dir lives on one machine; the archive travels with the repository, so the report can be
     regenerated from a fresh clone. A run already archived gets what it has new (the report's cached
-    evaluations); a different run under the same name is refused, before anything is copied. Returns
-    the archived directories."""
+    evaluations), a run extended since replaces its earlier state (what the run dir no longer holds goes:
+    it set its old policy's files aside as *-epN.*); a different run under the same name is refused,
+    before anything is copied. Returns the archived directories."""
     cli.check_dir_writable(dest, "--to")
     plan = []
     for d in match_runs(patterns):
@@ -207,20 +228,22 @@ def archive_runs(patterns, dest=RESULTS_DIR, log=print):
             log(f"  {d}: not finished (no eval.json), not archived")
             continue
         to = os.path.join(dest, os.path.basename(os.path.normpath(d)))
-        if os.path.exists(to) and not all(os.path.exists(os.path.join(to, f)) and
-                                          same_file(os.path.join(d, f), os.path.join(to, f))
-                                          for f in ("config.json", "metrics.csv", "policy.pt")):
+        state = same_run(d, to) if os.path.exists(to) else "new"
+        if state is None:
             raise ArgError(f"{to!r} holds another run than {d!r}: nothing archived (remove it, or rename the run dir)")
-        plan.append((d, to))
+        plan.append((d, to, state))
     if not plan:
         raise ArgError(f"{patterns!r}: no finished run (with eval.json) to archive")
-    for d, to in plan:
+    kept = lambda names: [f for f in names if f in ARCHIVED or (f.startswith("eval") and f.endswith(".json"))]  # noqa: E731
+    for d, to, state in plan:
         os.makedirs(to, exist_ok=True)
-        names = [f for f in os.listdir(d) if f in ARCHIVED or (f.startswith("eval") and f.endswith(".json"))]
+        names = kept(os.listdir(d))
+        for f in set(kept(os.listdir(to))) - set(names) if state == "earlier" else ():
+            os.remove(os.path.join(to, f))
         for f in names:
             shutil.copy2(os.path.join(d, f), os.path.join(to, f))
-        log(f"  {d} -> {to} ({', '.join(sorted(names))})")
-    return [to for _, to in plan]
+        log(f"  {d} -> {to}{' (extended since)' * (state == 'earlier')} ({', '.join(sorted(names))})")
+    return [to for _, to, _ in plan]
 
 
 def write_report(patterns, out_dir="docs", log=print):

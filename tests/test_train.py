@@ -190,12 +190,20 @@ def test_a_finished_run_is_not_resumed_but_can_be_extended(tiny_run, tmp_path, c
     shutil.copytree(tiny_run["dir"], run_dir)
     for cached in ("eval-ctx-loc-2.json", "eval-bg-light-1mm.json"):     # evaluations of the old policy
         shutil.copy(os.path.join(run_dir, "eval.json"), os.path.join(run_dir, cached))
+    results = tmp_path / "results"
+    report.archive_runs(run_dir, dest=str(results), log=lambda *_: None)
     assert tacrl.main(["--resume", run_dir, "--train-episodes", "9"]) == 0
     assert "the finished run's files are now *-ep8.*" in capsys.readouterr().out
     assert [int(r["episode"]) for r in metrics(run_dir)] == list(range(1, 10))
     assert sorted(f for f in os.listdir(run_dir) if f.startswith(("policy", "eval", "curves"))) == [
         "curves-ep8.png", "curves.png", "eval-bg-light-1mm-ep8.json", "eval-ctx-loc-2-ep8.json", "eval-ep8.json",
         "eval.json", "policy-ep8.pt", "policy.pt"]
+    # archived again, the extended run replaces its earlier state: no cached evaluation of the old policy is left
+    report.archive_runs(run_dir, dest=str(results), log=lambda *_: None)
+    assert sorted(os.listdir(results / "run")) == ["config.json", "curves.png", "eval-bg-light-1mm-ep8.json",
+                                                   "eval-ctx-loc-2-ep8.json", "eval-ep8.json", "eval.json",
+                                                   "metrics.csv", "policy.pt"]
+    assert report.same_run(run_dir, str(results / "run")) == "same" and len(metrics(results / "run")) == 9
     assert json.load(open(os.path.join(run_dir, "config.json")))["train_episodes"] == 9
 
 
