@@ -17,6 +17,7 @@ import csv
 import glob
 import json
 import os
+import re
 import shutil
 import signal
 import sys
@@ -458,6 +459,13 @@ def context_rows(job):
     return rows
 
 
+def training_of(run):
+    """'seed S: N episodes', and where a run trained on since (its first policy's eval-epM.json) had first finished."""
+    stops = sorted(int(m[1]) for m in (re.fullmatch(r"eval-ep(\d+)\.json", f) for f in os.listdir(run["dir"])) if m)
+    return (f"seed {run['cfg']['seed']}: {run['eval']['train_episodes']} episodes"
+            + (f" (first finished at {stops[0]}, then trained on)" if stops else ""))
+
+
 def write_contexts(patterns, out_dir, levels=LEVELS, episodes=20, jobs=1, log=print):
     """Train in one context, test in all: every run of ours (task attention) and of its full-view twin made in
     this world, evaluated in every context of sim.CONTEXTS at `levels` (mm), `episodes` trials each; writes
@@ -485,9 +493,8 @@ def write_contexts(patterns, out_dir, levels=LEVELS, episodes=20, jobs=1, log=pr
         r = next(r for r in runs if r["dir"] == d)
         view = VIEWS[r["cfg"]["roi"]] + setting(r["cfg"])[len("ours"):]
         table.setdefault((r["cfg"]["task"], view, ctx), []).append(rows)
-        if ctx == "train":                   # the training each row's seeds had: the same rule and cap for every view
-            trained.setdefault((r["cfg"]["task"], view), []).append(f"seed {r['cfg']['seed']}: "
-                                                                   f"{r['eval']['train_episodes']} episodes")
+        if ctx == "train":
+            trained.setdefault((r["cfg"]["task"], view), []).append(training_of(r))
     md = ["# Context generalization: trained in `train`, tested in every context", "",
           f"Made by `python report.py --contexts \"{patterns}\"`. Every context is defined in `sim.CONTEXTS` "
           f"(world {sim.WORLD}); the figures below show what each looks like. Each cell: success rate, mean over "
@@ -512,7 +519,8 @@ def write_contexts(patterns, out_dir, levels=LEVELS, episodes=20, jobs=1, log=pr
         cells = [f"{m:.2f} ({lo:.2f}-{hi:.2f})" if len(sr) > 1 else f"{m:.2f}"
                  for m, lo, hi in zip(sr.mean(0), sr.min(0), sr.max(0))]
         md.append(f"| {task} | {view} | {ctx} | {len(seeds)} | {' | '.join(cells)} | {cr.mean():.1f} | {goal} |")
-    md += ["", "Training (each run stops when learned, at most its --train-episodes):", ""]
+    md += ["", "Training (each run stops when learned, at most its --train-episodes; one trained on since, with "
+           "`--resume DIR --train-episodes N --stop-held 0`, says where it had first finished):", ""]
     md += [f"- {task}, {view}: {', '.join(v)}" for (task, view), v in sorted(trained.items())]
     md += ["", "The contexts:", ""] + [f"- `{name}`: {describe(name)}" for name in sim.CONTEXTS]
     md += ["", "The paper (real robot, Fig. 12, average cumulative reward): task attention 61.19 -> 54.73 (new "

@@ -204,6 +204,8 @@ def test_a_finished_run_is_not_resumed_but_can_be_extended(tiny_run, tmp_path, c
                                                    "eval-ctx-loc-2-ep8.json", "eval-ep8.json", "eval.json",
                                                    "metrics.csv", "policy.pt"]
     assert report.same_run(run_dir, str(results / "run")) == "same" and len(metrics(results / "run")) == 9
+    assert report.training_of(report.load_run(run_dir)) == "seed 0: 9 episodes (first finished at 8, then trained on)"
+    assert report.training_of(report.load_run(tiny_run["dir"])) == "seed 0: 8 episodes"
     assert json.load(open(os.path.join(run_dir, "config.json")))["train_episodes"] == 9
 
 
