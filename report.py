@@ -204,11 +204,11 @@ def same_run(d, to):
     cfgs, rows = [], []
     try:
         for x in (d, to):
-            cfgs.append({k: v for k, v in read_json(os.path.join(x, "config.json")).items()
+            cfgs.append({k: v for k, v in asdict(tacrl.read_config(x)).items()   # (flags added since: defaults)
                          if k not in (*tacrl.RESUME_MAY_SET, "run_dir")})        # (a run dir may move)
             with open(os.path.join(x, "metrics.csv")) as f:
                 rows.append(list(csv.DictReader(f)))
-    except (OSError, ValueError, AttributeError):
+    except (OSError, ValueError, TypeError, AttributeError):
         return None
     return "earlier" if cfgs[0] == cfgs[1] and 0 < len(rows[1]) < len(rows[0]) and rows[0][:len(rows[1])] == rows[1] \
         else None

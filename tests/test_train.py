@@ -192,6 +192,9 @@ def test_a_finished_run_is_not_resumed_but_can_be_extended(tiny_run, tmp_path, c
         shutil.copy(os.path.join(run_dir, "eval.json"), os.path.join(run_dir, cached))
     results = tmp_path / "results"
     report.archive_runs(run_dir, dest=str(results), log=lambda *_: None)
+    archived_cfg = json.loads((results / "run" / "config.json").read_text())
+    del archived_cfg["augment"]                          # as written before that flag existed: its default
+    (results / "run" / "config.json").write_text(json.dumps(archived_cfg))
     assert tacrl.main(["--resume", run_dir, "--train-episodes", "9"]) == 0
     assert "the finished run's files are now *-ep8.*" in capsys.readouterr().out
     assert [int(r["episode"]) for r in metrics(run_dir)] == list(range(1, 10))
