@@ -138,15 +138,20 @@ def write_log(path, columns, rows):
         csv.DictWriter(f, columns).writerows(rows)
 
 
-def set_aside(run_dir, tag):
+def set_aside(run_dir, episode):
     """Rename what a finished run's policy made (policy.pt, curves.png, eval.json and every evaluation cached
-    as eval*.json) to NAME-<tag>.EXT when the run is extended, so that its new policy is evaluated anew;
-    files set aside before (NAME-epN.EXT) stay as they are."""
+    as eval*.json) to NAME-ep<episode>.EXT when the run is extended, so that its new policy is evaluated
+    anew; files set aside before stay as they are."""
     for name in sorted(os.listdir(run_dir)):
         stem, ext = os.path.splitext(name)
         if name in ("policy.pt", "curves.png") or (stem.startswith("eval") and ext == ".json"
                                                   and not re.search(r"-ep\d+$", stem)):
-            os.replace(os.path.join(run_dir, name), os.path.join(run_dir, f"{stem}-{tag}{ext}"))
+            os.replace(os.path.join(run_dir, name), os.path.join(run_dir, f"{stem}-ep{episode}{ext}"))
+
+
+def set_aside_at(run_dir):
+    """The episodes at which set_aside kept a run's earlier policies (its eval-epN.json), oldest first."""
+    return sorted(int(m[1]) for m in (re.fullmatch(r"eval-ep(\d+)\.json", f) for f in os.listdir(run_dir)) if m)
 
 
 def fmt_time(s):

@@ -17,7 +17,6 @@ import csv
 import glob
 import json
 import os
-import re
 import shutil
 import signal
 import sys
@@ -460,8 +459,8 @@ def context_rows(job):
 
 
 def training_of(run):
-    """'seed S: N episodes', and where a run trained on since (its first policy's eval-epM.json) had first finished."""
-    stops = sorted(int(m[1]) for m in (re.fullmatch(r"eval-ep(\d+)\.json", f) for f in os.listdir(run["dir"])) if m)
+    """'seed S: N episodes', and where a run trained on since (cli.set_aside) had first finished."""
+    stops = cli.set_aside_at(run["dir"])
     return (f"seed {run['cfg']['seed']}: {run['eval']['train_episodes']} episodes"
             + (f" (first finished at {stops[0]}, then trained on)" if stops else ""))
 

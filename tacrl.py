@@ -265,7 +265,7 @@ def start_run(cfg, device, sac, curr, env, sample_rng, buf, log):
     cli.write_log(metrics, METRICS, rows)
     stop = (stop[0], 0) if finished else stop         # extended: validate anew, and keep what it wrote
     if finished:                                      # its policy's files and cached evaluations: *-epN.*
-        cli.set_aside(cfg.run_dir, f"ep{start}")
+        cli.set_aside(cfg.run_dir, start)
     if not start or finished:
         with open(os.path.join(cfg.run_dir, "config.json"), "w") as f:
             json.dump({k: v for k, v in asdict(cfg).items() if k != "resume"}, f, indent=2)
