@@ -63,8 +63,8 @@ class TwoStep:
         env, feats, offsets = self.env, [], []
         rng = np.random.default_rng(seed)
         scale = np.array([sim.E_R_FINAL] * 3 + [sim.E_ROT_FINAL])     # Eq. 13 at the final range
-        for _ in range(episodes):
-            obs, info = env.reset(options={"error": rng.uniform(-1, 1, 4) * scale})
+        for i in range(episodes):       # each episode's sensor noise seeded too: the fit is the same in every process
+            obs, info = env.reset(seed=seed * 100003 + i, options={"error": rng.uniform(-1, 1, 4) * scale})
             for k in range(self.SERVO):
                 b = hole_blob(obs["image"])
                 if b is not None:
@@ -76,8 +76,8 @@ class TwoStep:
         # second pass: run the servo itself on more calibration errors; its mean offset at the end is
         # a bias of the fit near the hole (where the servo ends), which we then subtract
         self.bias, ends = np.zeros(2), []
-        for _ in range(episodes // 2):
-            obs, info = env.reset(options={"error": rng.uniform(-1, 1, 4) * scale})
+        for i in range(episodes, episodes + episodes // 2):
+            obs, info = env.reset(seed=seed * 100003 + i, options={"error": rng.uniform(-1, 1, 4) * scale})
             self.reset()
             for k in range(self.SERVO + 4):
                 obs, _, _, _, info = env.step(self(obs))
