@@ -94,6 +94,11 @@ FT_NOISE = np.array([0.1, 0.1, 0.1, 0.005, 0.005, 0.003])
 # 0.02 / 0.01 N m as what a reading must exceed to mean contact. We let the bias, zeroed at each
 # episode's start as a robot zeroes its sensor before an insertion, random-walk so that its 3 sigma
 # reaches those thresholds at the end of an episode (24 s): a slowly drifting bias of 0.33 N sigma.
+# No other data sheet we found gives one. The one published measurement: a UR e-series wrist sensor,
+# zeroed, the arm still, read (0.27, 1.38, 4.02) N off zero 5 min later
+# (github.com/UniversalRobots/Universal_Robots_ROS_Driver/issues/633), 2.1 x this rate as a random
+# walk. What the rate decides is measured in results/drift/ (bench/drift_effect.py): little for
+# trained policies, a lot for the hand-designed one.
 FT_DRIFT = np.array([1.0, 1.0, 1.0, 0.02, 0.02, 0.01]) / 3 / np.sqrt(24.0)   # per sqrt(s)
 # The camera's shot noise: a pixel that reads y (0-255) collected y * E_PER_DN photo-electrons, so it
 # reads y +- sqrt(y / E_PER_DN). A shot-noise-limited pixel's best SNR is sqrt(full well): the Micron
