@@ -31,6 +31,21 @@ def blob_features(b, k):
     return np.concatenate([f, k / 10.0 * f[:4]])
 
 
+NAMES = ("initial", "two-step")
+
+
+def make(name, env):
+    """A baseline by name, ready to act on `env`: initial (the hand-designed policy alone, F_d = 0) or
+    two-step (a TwoStep, calibrated on env: its fit's median error is then `fit_error`, m)."""
+    if name == "initial":
+        return lambda obs: np.zeros(6)
+    if name != "two-step":
+        raise ValueError(f"no baseline {name!r}: {', '.join(NAMES)}")
+    ts = TwoStep(env)
+    ts.fit_error = ts.calibrate()
+    return ts
+
+
 class TwoStep:
     """The classical two-step approach: (1) visual servoing on the eye-in-hand image to the hole,
     (2) a spiral search with contact-state detection, then insertion. No learning; it acts through

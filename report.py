@@ -278,9 +278,7 @@ def write_report(patterns, out_dir="docs", log=print):
     else:
         log("evaluating the two-step baseline (peg, 20 mm, 20 episodes)")
         with sim.AssemblyEnv("peg", e_r=0.02) as env:
-            ts = baselines.TwoStep(env)
-            ts.calibrate()
-            ts_row = tacrl.evaluate(env, ts, 20, tacrl.EVAL_SEED, log=lambda *_: None)
+            ts_row = tacrl.evaluate(env, baselines.make("two-step", env), 20, tacrl.EVAL_SEED, log=lambda *_: None)
         with open(path, "w") as f:
             json.dump(ts_row, f, indent=2)
     table1 = [("two-step", [ts_row], "-")]

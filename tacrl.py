@@ -86,7 +86,7 @@ class Config:
 
 EVAL_SEED = 1000             # evaluation episodes use seeds from EVAL_SEED + seed: never a training seed
 POSE_SCALE = np.array([sim.E_R_FINAL] * 3 + [sim.E_ROT_FINAL] * 3)   # m, rad: the encoders' pose units
-BASELINES = ("initial", "two-step")
+BASELINES = baselines.NAMES
 RESUME_MAY_SET = ("resume", "train_episodes", "stop_held", "threads")   # to extend a run; nothing else changes
 VAL_SEED, VAL_EPISODES, VAL_WINS, VAL_EVERY, VAL_PASSES = 2000, 20, 19, 10, 2   # stop when learned: 19 of 20 twice
 METRICS = ["episode", "return", "success", "sr15", "e_r_mm", "ex_r_mm", "delta", "steps", "total_steps", "updates",
@@ -470,12 +470,9 @@ def run_evaluation(cfg):
             video = cv2.VideoWriter(cfg.video, cv2.VideoWriter_fourcc(*"mp4v"), sim.POLICY_HZ, size)
             if not video.isOpened():
                 raise ArgError(f"--video {cfg.video!r}: OpenCV cannot write an .mp4 there")
-        act = pi
-        if cfg.eval == "initial":
-            act = lambda obs: np.zeros(6)          # noqa: E731  the hand-designed policy alone, F_d = 0
-        elif cfg.eval == "two-step":
-            act = baselines.TwoStep(env)
-            print(f"two-step: calibrated the image -> offset map, median error {act.calibrate() * 1000:.2f} mm")
+        act = pi if pi is not None else baselines.make(cfg.eval, env)
+        if cfg.eval == "two-step":
+            print(f"two-step: calibrated the image -> offset map, median error {act.fit_error * 1000:.2f} mm")
         try:
             row = evaluate(env, act, cfg.episodes, EVAL_SEED + cfg.seed, video)   # the seeds of eval.json
         finally:

@@ -12,7 +12,6 @@ import argparse
 import os
 import sys
 
-import numpy as np
 import torch
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -48,12 +47,7 @@ def main():
             for k in a.scales:
                 sim.FT_DRIFT = drift * k            # read by World.wrench_tool at every reading
                 with tacrl.eval_env(task, pi, e_r_mm=mm) as env:
-                    act = pi
-                    if name == "initial":
-                        act = lambda obs: np.zeros(6)       # noqa: E731  the hand-designed policy alone
-                    elif name == "two-step":
-                        act = baselines.TwoStep(env)
-                        act.calibrate()
+                    act = pi if pi is not None else baselines.make(name, env)
                     row = tacrl.evaluate(env, act, a.episodes, tacrl.EVAL_SEED + seed, log=lambda *_: None)
                 cells.append(f"{row['success_rate']:.2f} {row['cumulative_reward'][0]:6.1f}")
             print(f"  {name:40s} {task:4s} {mm:4.0f} mm   " + "   ".join(cells), flush=True)
