@@ -138,14 +138,18 @@ def write_log(path, columns, rows):
         csv.DictWriter(f, columns).writerows(rows)
 
 
+def is_evaluation(name):
+    """A run dir's file that holds an evaluation of its policy: eval.json and every cached eval*.json."""
+    return name.startswith("eval") and name.endswith(".json")
+
+
 def set_aside(run_dir, episode):
     """Rename what a finished run's policy made (policy.pt, curves.png, eval.json and every evaluation cached
     as eval*.json) to NAME-ep<episode>.EXT when the run is extended, so that its new policy is evaluated
     anew; files set aside before stay as they are."""
     for name in sorted(os.listdir(run_dir)):
         stem, ext = os.path.splitext(name)
-        if name in ("policy.pt", "curves.png") or (stem.startswith("eval") and ext == ".json"
-                                                  and not re.search(r"-ep\d+$", stem)):
+        if name in ("policy.pt", "curves.png") or (is_evaluation(name) and not re.search(r"-ep\d+$", stem)):
             os.replace(os.path.join(run_dir, name), os.path.join(run_dir, f"{stem}-ep{episode}{ext}"))
 
 

@@ -234,7 +234,7 @@ def archive_runs(patterns, dest=RESULTS_DIR, log=print):
         plan.append((d, to, state))
     if not plan:
         raise ArgError(f"{patterns!r}: no finished run (with eval.json) to archive")
-    kept = lambda names: [f for f in names if f in ARCHIVED or (f.startswith("eval") and f.endswith(".json"))]  # noqa: E731
+    kept = lambda names: [f for f in names if f in ARCHIVED or cli.is_evaluation(f)]  # noqa: E731
     for d, to, state in plan:
         os.makedirs(to, exist_ok=True)
         names = kept(os.listdir(d))
