@@ -12,6 +12,7 @@ import re
 import signal
 import sys
 import tempfile
+import time
 
 
 LOG = "train.log"            # a training run's console output, which seeds.py writes into its run dir
@@ -117,6 +118,49 @@ def warn_oversubscribed(prog, threads, processes=1, cores=None):
     if threads * processes > cores:
         print(f"{prog}: warning: {processes} x {threads} torch threads on {cores} cores: they will wait on each "
               f"other (use --threads {max(1, cores // processes)})", file=sys.stderr)
+
+
+class CoreShare:
+    """The cores that other processes leave this one, measured: all CPU time the machine spent (Linux's
+    /proc/stat) less this process's own (os.times), over the time since the last call. With torch's
+    default of a thread a core, one other busy process slowed SAC updates 3-4x on 2 cores (OpenMP's
+    threads wait for each other at every operation, and one of them is always waiting for the core the
+    other process holds); with one thread fewer, not at all (bench/bench_threads.py). Where /proc/stat
+    cannot be read, every core counts as free."""
+
+    def __init__(self, fixed=0, cores=None):
+        self.fixed, self.cores = fixed, cores or os.cpu_count() or 1
+        self.last = self._read()
+
+    @staticmethod
+    def _read():
+        try:
+            with open("/proc/stat") as f:
+                j = [int(x) for x in f.readline().split()[1:9]]    # user nice system idle iowait irq softirq steal
+        except (OSError, ValueError):
+            return None
+        own = os.times()
+        return time.monotonic(), (sum(j) - j[3] - j[4]) / os.sysconf("SC_CLK_TCK"), own.user + own.system
+
+    def free(self):
+        """Cores free of other processes since the last call: a core counts as taken once they use 0.3 of it.
+        With `fixed` threads (the user's --threads), always that."""
+        now = self._read()
+        if self.fixed:
+            return self.fixed
+        if now is None or self.last is None or now[0] - self.last[0] < 0.05:
+            return self.cores
+        others = ((now[1] - self.last[1]) - (now[2] - self.last[2])) / (now[0] - self.last[0])
+        self.last = now
+        return max(1, min(self.cores, int(self.cores - others + 0.3)))
+
+    def steps(self, n, set_threads, every=20):
+        """range(n), calling set_threads(self.free()) before the first step and every `every` steps: a long
+        phase of torch work (an episode's updates) follows the machine as it changes."""
+        for i in range(n):
+            if i % every == 0:
+                set_threads(self.free())
+            yield i
 
 
 def read_log(path, columns, upto):

@@ -9,7 +9,9 @@ MOVED_OPTIONS = ("seeds", "archive", "report", "report_dir")
 
 def upgrade_config(d):
     """An old config.json's dict -> today's keys. A run that used a removed option is refused: it
-    cannot be read as one that did not."""
+    cannot be read as one that did not. What is not a dict is left for the config's own check."""
+    if not isinstance(d, dict):
+        return d
     for k, off in REMOVED_OPTIONS.items():
         if d.pop(k, off) != off:
             raise ValueError(f"the run used --{k.replace('_', '-')}, an option that no longer exists")

@@ -33,7 +33,9 @@ interrupted between episodes restarts with the same buffer.
 import collections
 import copy
 import os
+import pickle
 import time
+import warnings
 
 import numpy as np
 import torch
@@ -261,7 +263,8 @@ class ReplayBuffer:
             if not os.path.exists(path):
                 raise ValueError(f"replay/{name} is missing")
             try:
-                with np.load(path, allow_pickle=False) as z:
+                # opened here: np.load leaves a damaged zip's file open, and Python warns of it
+                with open(path, "rb") as f, np.load(f, allow_pickle=False) as z:
                     ep = {"obs": {k: z["obs_" + k] for k in self.obs}, "act": z["act"], "rew": z["rew"], "term": z["term"]}
                 if len(ep["act"]) != T or any(len(v) != T + 1 for v in ep["obs"].values()):
                     raise ValueError(f"{len(ep['act'])} transitions, not {T}")
@@ -437,6 +440,17 @@ def save_atomic(obj, path):
     """torch.save to path.tmp, then rename: an interrupt leaves the old file or the new one."""
     torch.save(obj, path + ".tmp")
     os.replace(path + ".tmp", path)
+
+
+def load_file(path, device="cpu"):
+    """torch.load of a file this module saved: tensors and plain values only (weights_only), and quietly,
+    since torch warns about a foreign pickle before it refuses it; the caller reports what is wrong."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            return torch.load(path, map_location=device, weights_only=True)
+        except pickle.UnpicklingError:
+            raise ValueError("not a file of tensors that torch loads safely (weights_only)") from None
 
 
 def save_policy(path, sac, meta):

@@ -97,7 +97,7 @@ def command_of(cfg):
     """The training command that reproduces a run: the flags whose values differ from the defaults."""
     default, flags = tacrl.Config(), ["python tacrl.py"]
     for k, v in cfg.items():
-        if k in ("run_dir", "threads", "device", "resume") or not hasattr(default, k):
+        if k in ("run_dir", "threads", "device", "resume", "track") or not hasattr(default, k):
             continue
         if v != getattr(default, k) or k == "task":
             flags.append(f"--{k.replace('_', '-')}" + ("" if v is True else f" {v:g}" if isinstance(v, float) else f" {v}"))

@@ -830,6 +830,20 @@ def preset_roi(name, centre):
 
 
 # ---------------------------------------------------------------- the env
+def check_action(action, n=6):
+    """`action` as a float array of shape (n,): ValueError, naming it, if it is not n finite numbers."""
+    try:
+        a = np.asarray(action, dtype=float)
+    except (TypeError, ValueError):
+        a = None
+    if a is None or a.shape != (n,) or not np.all(np.isfinite(a)):
+        shown = " ".join(repr(action).split())              # on one line, and short
+        shown = shown if len(shown) <= 80 else shown[:77] + "..."
+        raise ValueError(f"action {shown}: an action is {n} finite numbers in [-1, 1]"
+                         + (f", not an array of shape {a.shape}" if a is not None and a.shape != (n,) else ""))
+    return a
+
+
 class AssemblyEnv(gymnasium.Env if gymnasium else object):
     """Residual-RL assembly env (Algorithm 1's 'interact with environment').
 
@@ -966,8 +980,9 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
 
     def action_to_fd(self, action):
         """a in [-1, 1]^6 -> F_d (6,) = a * F_max/2, +-5 N and +-0.5 N m in the estimated task frame (Eq. 12),
-        returned in world axes at the tip."""
-        f = np.clip(np.asarray(action, float), -1.0, 1.0) * F_MAX6 / 2
+        returned in world axes at the tip. Values beyond +-1 are clipped; an action that is not 6 finite
+        numbers is a ValueError (a NaN would reach the physics and corrupt the rest of the episode)."""
+        f = np.clip(check_action(action), -1.0, 1.0) * F_MAX6 / 2
         R = self.task_rotation()
         return np.concatenate([R @ f[:3], R @ f[3:]])
 

@@ -13,10 +13,12 @@ A run dir holds config.json, ckpt.pt (networks, optimisers, curriculum, RNG stat
 replay/ (one .npz an episode), metrics.csv, then policy.pt, curves.png, eval.json. Several seeds: seeds.py.
 """
 import csv
+import importlib
 import json
 import os
 import signal
 import sys
+import tempfile
 import time
 from dataclasses import asdict, dataclass, fields, replace
 
@@ -77,17 +79,21 @@ class Config:
     # evaluation (Tables 1-2)
     episodes: int = opt(20, "evaluation episodes a level (the paper: 20 test trials)", bounds=(1, None))
     json: str = opt("", "also write the evaluation row to this new JSON file", mode="eval")
-    video: str = opt("", "record the first evaluation episode from an external camera to this new .mp4", mode="eval")
+    video: str = opt("", "record the first evaluation episode from an external camera to this new .webm (VP9) or "
+                         ".mp4 (H.264, where OpenCV has it): a browser plays either", mode="eval")
+    track: bool = train_opt(False, "also log to TensorBoard in <run dir>/tb: metrics.csv's columns, the losses, now and "
+                                   "then the task-attention image (pip install -e '.[track]'; tensorboard --logdir runs)")
     # the machine
     device: str = opt("auto", "where torch runs", ("auto", "cpu", "cuda"))
-    threads: int = opt(0, "torch CPU threads (0: torch's default, one a core)", bounds=(0, None))
+    threads: int = opt(0, "torch CPU threads (0: one a core that other processes leave free, measured as the run goes: "
+                          "torch's one a core slowed updates 3-4x beside one busy program)", bounds=(0, None))
     gui: bool = opt(False, "open the PyBullet window")
 
 
 EVAL_SEED = 1000             # evaluation episodes use seeds from EVAL_SEED + seed: never a training seed
 POSE_SCALE = np.array([sim.E_R_FINAL] * 3 + [sim.E_ROT_FINAL] * 3)   # m, rad: the encoders' pose units
 BASELINES = baselines.NAMES
-RESUME_MAY_SET = ("resume", "train_episodes", "stop_held", "threads")   # to extend a run; nothing else changes
+RESUME_MAY_SET = ("resume", "train_episodes", "stop_held", "threads", "track")   # to extend a run; nothing else changes
 VAL_SEED, VAL_EPISODES, VAL_WINS, VAL_EVERY, VAL_PASSES = 2000, 20, 19, 10, 2   # stop when learned: 19 of 20 twice
 METRICS = ["episode", "return", "success", "sr15", "e_r_mm", "ex_r_mm", "delta", "steps", "total_steps", "updates",
            "q_loss", "pi_loss", "alpha", "entropy", "env_s", "update_s", "elapsed_s"]
@@ -96,7 +102,7 @@ METRICS = ["episode", "return", "success", "sr15", "e_r_mm", "ex_r_mm", "delta",
 # ---------------------------------------------------------------- the command line
 def parse_args(argv):
     """argv -> a checked Config. A flag that would not apply (a training flag with --eval, or the other way
-    round; with --resume, all but --train-episodes and --threads) is a mistake, not silently ignored."""
+    round; with --resume, all but those of RESUME_MAY_SET) is a mistake, not silently ignored."""
     given = cli.parse(Config, argv, __doc__.split("\n\n")[0])      # only the flags on the command line
     mode = "eval" if "eval" in given else "train"
     for f in fields(Config):
@@ -110,7 +116,7 @@ def parse_args(argv):
                            f"it (--train-episodes N extends it)")
         run_dir = given.pop("resume")
         cfg = replace(load_config(run_dir), **given)
-        if os.path.exists(os.path.join(run_dir, "eval.json")) and not set(given) - {"threads"}:
+        if os.path.exists(os.path.join(run_dir, "eval.json")) and not set(given) - {"threads", "track"}:
             raise ArgError(f"--resume {run_dir!r}: the run is finished; extend it with --train-episodes N (and "
                            f"--stop-held 0 to train past the point where it stopped as learned)")
     else:
@@ -133,7 +139,8 @@ def check(cfg):
             (cfg.eval == "two-step" and cfg.task != "peg", "--eval two-step is the peg-in-hole baseline (Table 1)"),
             (cfg.buffer < max(cfg.batch, sim.MAX_STEPS), f"--buffer {cfg.buffer} must hold an episode ({sim.MAX_STEPS} "
                                                          f"transitions) and a batch (--batch {cfg.batch})"),
-            (cfg.video and not cfg.video.endswith(".mp4"), f"--video must name an .mp4 file, not {cfg.video!r}"),
+            (cfg.video and video_ext(cfg.video) not in VIDEO_FOURCC,
+             f"--video must name a .webm (VP9) or .mp4 (H.264) file, not {cfg.video!r}"),
             (not levels or not all(0.0 <= x <= e_r_max for x in levels),
              f"--eval-levels must be comma-separated error ranges in 0..{e_r_max:g} mm (the run's env covers "
              f"--error-mm, and at least 20), not {cfg.eval_levels!r}"),
@@ -141,9 +148,17 @@ def check(cfg):
             (cfg.gui and sim.display_problem(), f"--gui: {sim.display_problem()}")]:
         if bad:
             raise ArgError(msg)
+    if cfg.track:
+        try:
+            importlib.import_module("torch.utils.tensorboard")
+        except ImportError:
+            raise ArgError("--track logs to TensorBoard, which is not installed: pip install -e '.[track]'")
     cli.warn_oversubscribed("tacrl", cfg.threads)
     for name in [x for x in ("json", "video") if getattr(cfg, x)]:   # written after the work: checked before it
         cli.check_new_file(getattr(cfg, name), f"--{name}")
+    if cfg.video:                                   # the codec, tried on a scratch file: a format this OpenCV
+        with tempfile.TemporaryDirectory() as tmp:  # cannot write is a mistake before any work, not after it
+            open_video(os.path.join(tmp, "probe" + video_ext(cfg.video)), (64, 48), name=cfg.video).release()
     if cfg.device == "auto":                        # cuda where there is one
         cfg.device = "cuda" if torch.cuda.is_available() else "cpu"
     if not cfg.eval:
@@ -155,6 +170,26 @@ def check(cfg):
                            f"or pick another --run-dir")
         if not cfg.resume and set(left) - {cli.LOG}:
             raise ArgError(f"--run-dir {cfg.run_dir!r} is not empty: a new run starts in a new or empty directory")
+
+
+VIDEO_FOURCC = {".webm": "VP90", ".mp4": "avc1"}   # VP9 and H.264: what browsers play (MDN's web video codec guide)
+
+
+def video_ext(path):
+    return os.path.splitext(path)[1].lower()
+
+
+def open_video(path, size, fps=sim.POLICY_HZ, name=None):
+    """A cv2.VideoWriter of (w, h) BGR frames, its codec chosen by the extension; ArgError where this OpenCV
+    cannot write that format (OpenCV's pip wheels encode VP9 with libvpx but carry no H.264 encoder)."""
+    ext = video_ext(path)
+    with sim.quiet_c_output():                     # FFmpeg's notices (a codec tag it does not know for WebM)
+        writer = cv2.VideoWriter(path, cv2.VideoWriter_fourcc(*VIDEO_FOURCC[ext]), fps, size)
+    if not writer.isOpened():
+        codec = {".mp4": "H.264", ".webm": "VP9"}[ext]
+        hint = "; name a .webm file instead (VP9, which every current browser plays)" if ext == ".mp4" else ""
+        raise ArgError(f"--video {name or path!r}: this OpenCV ({cv2.__version__}) has no {codec} encoder{hint}")
+    return writer
 
 
 def default_run_dir(cfg):
@@ -206,7 +241,7 @@ def load_checkpoint(path, device, sac, curr, env, sample_rng):
     """Restore a checkpoint into the run's objects: (episode, total_steps, elapsed s, (episodes at E_final,
     validations passed in a row), the replay's state)."""
     try:
-        ck = torch.load(path, map_location=device, weights_only=True)
+        ck = policy.load_file(path, device)
         sac.load_state_dict(ck["sac"])
         curr.load_state_dict(json.loads(ck["curriculum"]))
         env.np_random.bit_generator.state = json.loads(ck["env_rng"])
@@ -276,8 +311,23 @@ def start_run(cfg, device, sac, curr, env, sample_rng, buf, log):
     return start, total_steps, elapsed, stop
 
 
-def record(cfg, ep, ret, episode, env, curr, losses, total_steps, times):
-    """Append the episode's row to metrics.csv; returns its progress line. times (s): env, update, elapsed, ETA."""
+TB_GROUPS = {"charts": ("return", "success", "sr15", "e_r_mm", "ex_r_mm", "delta", "steps", "total_steps", "updates"),
+             "losses": ("q_loss", "pi_loss", "alpha", "entropy"), "time": ("env_s", "update_s", "elapsed_s")}
+TB_IMAGE_EVERY = 10          # episodes between the task-attention images sent to TensorBoard
+
+
+def tensorboard_writer(cfg, start):
+    """--track: a TensorBoard writer on <run dir>/tb, CleanRL's convention (charts/, losses/); resumed, it
+    hides what an earlier process wrote past the checkpoint (purge_step). None without --track."""
+    if not cfg.track:
+        return None
+    from torch.utils.tensorboard import SummaryWriter     # the `track` extra; check() made sure it loads
+    return SummaryWriter(os.path.join(cfg.run_dir, "tb"), purge_step=start + 1 if start else None)
+
+
+def record(cfg, ep, ret, episode, env, curr, losses, total_steps, times, tb=None):
+    """Append the episode's row to metrics.csv (and to TensorBoard with --track); returns its progress line.
+    times (s): env, update, elapsed, ETA."""
     mean = {k: round(float(np.mean([x[k] for x in losses])), 5) if losses else float("nan")
             for k in ("q_loss", "pi_loss", "alpha", "entropy")}
     row = {"episode": ep + 1, "return": round(ret, 3), "success": int(episode["term"][-1]),
@@ -287,14 +337,27 @@ def record(cfg, ep, ret, episode, env, curr, losses, total_steps, times):
            "elapsed_s": round(times[2], 1)}
     with open(os.path.join(cfg.run_dir, "metrics.csv"), "a", newline="") as f:
         csv.DictWriter(f, METRICS).writerow(row)
+    if tb is not None:
+        for group, keys in TB_GROUPS.items():
+            for k in keys:
+                if np.isfinite(row[k]):                   # no losses during the warm-up
+                    tb.add_scalar(f"{group}/{k}", row[k], ep + 1)
+        if ep % TB_IMAGE_EVERY == 0:                      # what the policy saw as the episode began, (80, 80) uint8
+            tb.add_image("obs/task_attention", episode["obs"]["image"][0], ep + 1, dataformats="HW")
+        tb.flush()
     return (f"ep {ep + 1:4d}/{cfg.train_episodes}  R {ret:7.1f}  succ {row['success']}  sr15 {curr.success_rate:4.2f}  "
             f"E_r {row['e_r_mm']:4.1f}mm  Ex_r {row['ex_r_mm']:4.1f}mm  delta {curr.delta:5.3f}  steps {row['steps']:3d}  "
-            f"env {times[0]:4.1f}s  upd {times[1]:4.1f}s  elapsed {cli.fmt_time(times[2])}  ETA {cli.fmt_time(times[3])}")
+            f"env {times[0]:4.1f}s  upd {times[1]:4.1f}s ({torch.get_num_threads()} thr)  elapsed {cli.fmt_time(times[2])}  "
+            f"ETA {cli.fmt_time(times[3])}")
 
 
 def train(cfg, log=lambda msg: print(msg, flush=True)):
     """Algorithm 1: learning context-generalized TA-MRP with ACRRL. Returns eval.json's contents."""
-    torch.set_num_threads(cfg.threads or torch.get_num_threads())
+    # torch's threads: --threads, or one a core that other processes leave free. The trade: updates on 1 and on
+    # 2 threads differ in the last digits (a LayerNorm's and a convolution's gradient sums are split by thread),
+    # so a run repeats to the last digit only with --threads fixed
+    share = cli.CoreShare(cfg.threads)
+    torch.set_num_threads(share.free())
     torch.manual_seed(cfg.seed)
     # Lines 1-5, initialize the learning architecture: the env holds the hand-designed part of the skill (2: tau(t)
     # and K, Eq. 8-9, 14), the error range E_r (3), the ROI for E_r (4: Eq. 11, at the largest) and the reward (5)
@@ -307,12 +370,15 @@ def train(cfg, log=lambda msg: print(msg, flush=True)):
     shapes = {"image": (sim.IMG, sim.IMG), "pose_hist": (sim.HIST, 6), "wrench_hist": (sim.HIST, 6),
               **({"state": (policy.STATE_DIM,)} if cfg.critic == "privileged" else {})}     # what the buffer keeps
     sample_rng = np.random.default_rng(cfg.seed + 1)
+    tb = None
     try:
         os.makedirs(cfg.run_dir, exist_ok=True)
         buf = policy.ReplayBuffer(cfg.buffer, shapes, directory=os.path.join(cfg.run_dir, "replay"))
         start, total_steps, elapsed0, (held, passes) = start_run(cfg, cfg.device, sac, curr, env, sample_rng, buf, log)
+        tb = tensorboard_writer(cfg, start)
         log(f"config: {asdict(cfg)}")
-        log(f"parameters: {sac.parameter_counts()}; {cfg.device}, {torch.get_num_threads()} torch threads")
+        log(f"parameters: {sac.parameter_counts()}; {cfg.device}, " + (f"{cfg.threads} torch threads" if cfg.threads else
+            f"torch threads: one a core that other processes leave free ({torch.get_num_threads()} of {share.cores} now)"))
         probe_s, env_s, update_s = sac.update_seconds(shapes, cfg.batch) * cfg.updates, [], []
         t_start = time.time() - elapsed0
         # Lines 7-12, learn the residual TA-MRP
@@ -328,18 +394,20 @@ def train(cfg, log=lambda msg: print(msg, flush=True)):
             env_s.append(time.time() - t0)
             t0 = time.time()
             losses = [sac.update(buf.sample(cfg.batch, sample_rng, cfg.augment))     # line 10: update the policy with SAC
-                      for _ in range(cfg.updates if ep >= cfg.warmup else 0)]
+                      for _ in share.steps(cfg.updates if ep >= cfg.warmup else 0, torch.set_num_threads)]
             update_s += [time.time() - t0] if losses else []
             curr.update(bool(episode["term"][-1]))                     # line 11: generate the curriculum, Eq. 16
             held = held + 1 if env.e_r >= curr.final - 1e-9 else 0     # episodes in a row at the final range
             if cfg.stop_held and held >= cfg.stop_held and (held - cfg.stop_held) % VAL_EVERY == 0:   # learned?
                 wins = validate(cfg, sac, curr, env.e_r_max)
                 passes = passes + 1 if wins >= VAL_WINS else 0
+                if tb is not None:
+                    tb.add_scalar("charts/validation_wins", wins, ep + 1)
                 log(f"validation at episode {ep + 1}: the greedy policy inserted {wins} of {VAL_EPISODES} at "
                     f"{cfg.error_mm:g} mm ({passes} of {VAL_PASSES} passes in a row)")
             elapsed = time.time() - t_start
             times = (env_s[-1], time.time() - t0, elapsed, eta_seconds(ep, cfg, env_s, update_s, probe_s))
-            line = record(cfg, ep, ret, episode, env, curr, losses, total_steps, times)
+            line = record(cfg, ep, ret, episode, env, curr, losses, total_steps, times, tb)
             save_checkpoint(os.path.join(cfg.run_dir, "ckpt.pt"), ep + 1, total_steps, elapsed, (held, passes), sac,
                             curr, env, sample_rng, buf)
             buf.prune()                              # only now: the last checkpoint still needed those files
@@ -351,6 +419,8 @@ def train(cfg, log=lambda msg: print(msg, flush=True)):
         raise KeyboardInterrupt(f"every finished episode is saved; continue with --resume {cfg.run_dir}")
     finally:
         env.close()
+        if tb is not None:
+            tb.close()
     return finish(cfg, sac, curr, env.e_r_max, cfg.device, time.time() - t_start, log)
 
 
@@ -390,7 +460,10 @@ def finish(cfg, sac, curr, e_r_max, device, seconds, log):
 def load_policy(path, task, device="cpu"):
     """policy.pt -> policy.TrainedPolicy; a file that is not one, or one for another task, is a user error."""
     try:
-        pi = policy.TrainedPolicy(legacy.upgrade_policy(torch.load(path, map_location=device, weights_only=True)), device)
+        pi = policy.TrainedPolicy(legacy.upgrade_policy(policy.load_file(path, device)), device)
+        missing = {"task", "roi", "vanilla", "ex_r", "e_r_max"} - set(pi.meta)   # what training tells evaluation
+        if missing:
+            raise ValueError(f"its meta lacks {', '.join(sorted(missing))}")
     except Exception as e:          # corrupt, truncated, foreign: one line for the user
         raise ArgError(f"--eval {path!r}: cannot load the policy ({cli.describe(e)})")
     if pi.meta["task"] != task:
@@ -466,10 +539,7 @@ def run_evaluation(cfg):
     with eval_env(cfg.task, pi, cfg.context, cfg.roi, cfg.clearance_mm, cfg.error_mm, cfg.gui) as env:
         video = None
         if cfg.video:
-            size = env.world.render_external().shape[1::-1]
-            video = cv2.VideoWriter(cfg.video, cv2.VideoWriter_fourcc(*"mp4v"), sim.POLICY_HZ, size)
-            if not video.isOpened():
-                raise ArgError(f"--video {cfg.video!r}: OpenCV cannot write an .mp4 there")
+            video = open_video(cfg.video, env.world.render_external().shape[1::-1])
         act = pi if pi is not None else baselines.make(cfg.eval, env)
         if cfg.eval == "two-step":
             print(f"two-step: calibrated the image -> offset map, median error {act.fit_error * 1000:.2f} mm")
@@ -477,7 +547,8 @@ def run_evaluation(cfg):
             row = evaluate(env, act, cfg.episodes, EVAL_SEED + cfg.seed, video)   # the seeds of eval.json
         finally:
             if video is not None:
-                video.release()
+                with sim.quiet_c_output():
+                    video.release()
         row.update({"task": cfg.task, "policy": cfg.eval, "error_mm": cfg.error_mm, "ex_r_mm": round(env.ex_r * 1000, 3),
                     "context": cfg.context, "roi": cfg.roi, "seed": cfg.seed})
     print(format_row(f"{cfg.eval if pi is None else 'TA-MRP'} {cfg.task} {cfg.error_mm:g}mm", row))

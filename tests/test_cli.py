@@ -1,13 +1,17 @@
 """tacrl.py's command line: every flag described once, a user's mistake is one line and exit code 2,
 the hand-designed policy's evaluation row, a corrupt checkpoint or policy file is a one-line error."""
 import dataclasses
+import itertools
 import json
 import os
 import subprocess
 import sys
 
+import cv2
 import pytest
 
+import cli
+import sim
 import tacrl
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -45,15 +49,34 @@ def test_each_flag_is_described_once_in_help(capsys):
         assert flag in text and "".join(f.metadata["help"].split()) in text, flag
 
 
-def test_initial_policy_row_and_json(tmp_path, capsys):
-    out = tmp_path / "row.json"
-    assert tacrl.main(["--task", "peg", "--eval", "initial", "--error-mm", "0", "--episodes", "1", "--json", str(out)]) == 0
+def test_initial_policy_row_json_and_a_video_browsers_play(tmp_path, capsys):
+    out, video = tmp_path / "row.json", tmp_path / "ep.webm"
+    assert tacrl.main(["--task", "peg", "--eval", "initial", "--error-mm", "0", "--episodes", "1", "--json", str(out),
+                       "--video", str(video)]) == 0
     stdout = capsys.readouterr().out
     assert "SR" in stdout and "initial peg 0mm" in stdout
     row = json.loads(out.read_text())
     assert row["success_rate"] == 1.0 and row["episodes"] == 1
     assert 5.0 < row["completion_time_s"][0] < 24.0
     assert row["cumulative_reward"][0] > 0
+    # WebM (its EBML header and doctype) holding VP9, a frame a policy step, as OpenCV reads it back
+    head = video.read_bytes()[:64]
+    assert head.startswith(b"\x1a\x45\xdf\xa3") and b"webm" in head
+    cap = cv2.VideoCapture(str(video))
+    fourcc = int(cap.get(cv2.CAP_PROP_FOURCC)).to_bytes(4, "little")
+    frames = 0
+    while cap.read()[0]:
+        frames += 1
+    cap.release()
+    assert fourcc == b"VP90" and frames == round(row["completion_time_s"][0] * sim.POLICY_HZ)
+
+
+def test_a_video_format_this_opencv_cannot_write_is_one_line_before_any_work(tmp_path, capsys):
+    # OpenCV's pip wheels have no H.264 encoder; one that has writes the .mp4, and then this checks nothing
+    ok = tacrl.main(["--eval", "initial", "--episodes", "1", "--error-mm", "0", "--video", str(tmp_path / "ep.mp4")])
+    err = capsys.readouterr().err
+    assert (ok == 0 and (tmp_path / "ep.mp4").stat().st_size > 0) or \
+        (ok == 2 and err.count("\n") == 1 and "no H.264 encoder; name a .webm" in err and not os.listdir(tmp_path))
 
 
 def test_corrupt_checkpoint_is_a_one_line_error(tmp_path, capsys):
@@ -72,3 +95,21 @@ def test_corrupt_policy_is_a_one_line_error(tmp_path, capsys):
     assert tacrl.main(["--eval", str(bad)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "cannot load" in err
+
+
+def test_core_share_leaves_a_core_to_another_busy_process(monkeypatch):
+    # readings: (wall s, CPU s of the whole machine, CPU s of this process); 2 cores
+    readings = itertools.chain([(0, 0, 0), (1, 1.0, 0.98), (2, 2.95, 1.96), (3, 4.2, 2.9), (4, 5.45, 3.9), (4.01, 6, 4)],
+                               itertools.repeat(None))         # then as where /proc/stat cannot be read
+    monkeypatch.setattr(cli.CoreShare, "_read", staticmethod(lambda: next(readings)))
+    share = cli.CoreShare(cores=2)
+    assert share.free() == 2          # only this process ran: the other core is free
+    assert share.free() == 1          # another process used 0.97 of a core
+    assert share.free() == 1          # 0.31 of one: still counted as taken
+    assert share.free() == 2          # 0.25: noise, not a busy program
+    assert share.free() == 2          # 10 ms since the last reading is too short to say: all cores
+    assert cli.CoreShare(fixed=3, cores=2).free() == 3                 # --threads is the user's to set
+    calls = []
+    monkeypatch.setattr(cli.CoreShare, "free", lambda self: len(calls) + 1)
+    assert list(cli.CoreShare(cores=2).steps(45, calls.append, every=20)) == list(range(45))
+    assert calls == [1, 2, 3]         # before updates 0, 20 and 40

@@ -3,12 +3,15 @@ nothing on disk; Ctrl-C is one line and exit code 130; a launcher of several run
 says which failed; random flag values come out of the checks as a Config or as one such line."""
 import json
 import os
+import pickle
 import shutil
 import string
 import sys
 import time
+import warnings
 
 import pytest
+import torch
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -53,10 +56,13 @@ def workdir(tmp_path_factory, unfinished_run):
     (tmp_path / "adir").mkdir()
     (tmp_path / "full").mkdir()
     (tmp_path / "full" / "notes.txt").write_text("someone's")
-    (tmp_path / "adir.mp4").mkdir()
+    (tmp_path / "adir.webm").mkdir()
     (tmp_path / "row.json").write_text("{}")
     (tmp_path / "empty.pt").write_bytes(b"")
-    for name, config in (("badtype", '{"episodes": "x"}'), ("notjson", "{task: peg"), ("badchoice", '{"task": "screw"}')):
+    (tmp_path / "pickled.pt").write_bytes(pickle.dumps({"task": "peg"}))     # a pickle, not torch's zip format
+    torch.save({"task": "peg"}, tmp_path / "notapolicy.pt")                   # torch's format, not a policy
+    for name, config in (("badtype", '{"episodes": "x"}'), ("notjson", "{task: peg"), ("badchoice", '{"task": "screw"}'),
+                         ("notobject", "[1, 2]"), ("null", "null")):
         (tmp_path / name).mkdir()
         (tmp_path / name / "config.json").write_text(config)
     (tmp_path / "cfgdir" / "config.json").mkdir(parents=True)
@@ -83,7 +89,10 @@ def mistake(argv, here, capsys, main=tacrl.main, prog="tacrl"):
     """Run a command that must refuse: returns its one line."""
     before = snapshot(here)
     capsys.readouterr()
-    assert main(argv) == 2, argv
+    with warnings.catch_warnings(record=True) as caught:     # a library's warning would print above our line
+        warnings.simplefilter("always")
+        assert main(argv) == 2, argv
+    assert not caught, [str(w.message)[:200] for w in caught]
     err = capsys.readouterr().err
     assert err.startswith(f"{prog}: error: ") and err.count("\n") == 1 and "Traceback" not in err, err
     assert snapshot(here) == before, "the refused command changed files on disk"
@@ -106,7 +115,8 @@ def mistake(argv, here, capsys, main=tacrl.main, prog="tacrl"):
     (["--resume", "afile"], "is a file, not a run directory"), (["--resume", "adir"], "no config.json"),
     (["--resume", "cfgdir"], "config.json is unreadable (IsADirectoryError"),
     (["--resume", "badtype"], "'episodes' is 'x', not an integer"), (["--resume", "notjson"], "JSONDecodeError"),
-    (["--resume", "badchoice"], "'task' is 'screw'"),
+    (["--resume", "badchoice"], "'task' is 'screw'"), (["--resume", "notobject"], "not a JSON object"),
+    (["--resume", "null"], "not a JSON object"),
     (["--resume", "run", "--lr", "0.1"], "--lr cannot change it"),
     (["--resume", "run", "--train-episodes", "1"], "the run has 3 episodes"),
     # --resume of a damaged run: one line, nothing rebuilt that cannot be
@@ -114,13 +124,14 @@ def mistake(argv, here, capsys, main=tacrl.main, prog="tacrl"):
     (["--resume", "noreplay"], "is missing"), (["--resume", "nometrics"], "metrics.csv"),
     (["--resume", "badmetrics"], "cannot continue the run"),
     # evaluation: files to write checked before the work, nothing overwritten, a policy that cannot be
-    (["--eval", "empty.pt"], "cannot load the policy (EOFError"),
+    (["--eval", "empty.pt"], "cannot load the policy (EOFError"), (["--eval", "pickled.pt"], "cannot load the policy"),
+    (["--eval", "notapolicy.pt"], "not a tacrl policy file"), (["--eval", "run/ckpt.pt"], "not a tacrl policy file"),
     (["--eval", "initial", "--json", "no/such/row.json"], "does not exist"),
     (["--eval", "initial", "--json", "adir"], "is a directory"), (["--eval", "initial", "--json", "row.json"], "exists"),
     (["--eval", "initial", "--json", "/proc/row.json"], "nothing can be written"),
-    (["--eval", "initial", "--video", "no/such/ep.mp4"], "does not exist"),
-    (["--eval", "initial", "--video", "adir.mp4"], "is a directory"),
-    (["--eval", "initial", "--video", "/proc/ep.mp4"], "nothing can be written"),
+    (["--eval", "initial", "--video", "no/such/ep.webm"], "does not exist"),
+    (["--eval", "initial", "--video", "adir.webm"], "is a directory"),
+    (["--eval", "initial", "--video", "/proc/ep.webm"], "nothing can be written"),
     (["--eval", "run/policy.pt", "--error-mm", "25"], "this policy's view covers 20 mm"),
     # flags that would do nothing in this mode; typos; no display for --gui
     (["--eval", "initial", "--lr", "0.1"], "--lr is for training"), (["--json", "x.json"], "--json is for --eval"),

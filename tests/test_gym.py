@@ -47,3 +47,27 @@ def test_the_project_runs_without_gymnasium():
             "print('ran')")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=120)
     assert r.returncode == 0 and r.stdout.strip() == "ran", r.stderr
+
+
+def test_async_vector_env_gives_what_single_envs_give_on_the_same_seeds():
+    # Gymnasium's way to collect from several envs at once: each in a process of its own, started by
+    # 'spawn' (a fork of a process that has run torch can hang), each building its own PyBullet world
+    envs = gym.make_vec("tacrl/PegInsertion-v0", num_envs=2, vectorization_mode="async",
+                        vector_kwargs={"context": "spawn"})
+    actions = np.random.default_rng(0).uniform(-1, 1, (3, 2, 6)).astype(np.float32)
+    obs, _ = envs.reset(seed=[5, 9])
+    assert not np.array_equal(obs["pose_hist"][0], obs["pose_hist"][1])     # two envs, two seeds' errors
+    got = [(obs, None)]
+    for a in actions:
+        obs, r, term, trunc, _ = envs.step(a)
+        assert not term.any() and not trunc.any()
+        got.append((obs, r))
+    envs.close()
+    for i, seed in enumerate((5, 9)):
+        env = gym.make("tacrl/PegInsertion-v0")
+        want = [(env.reset(seed=seed)[0], None)] + [env.step(a[i])[:2] for a in actions]
+        env.close()
+        for (o_vec, r_vec), (o, r) in zip(got, want):
+            assert r is None or r_vec[i] == r
+            for k in o:
+                assert np.array_equal(o_vec[k][i], o[k]), (seed, k)

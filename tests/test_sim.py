@@ -18,6 +18,14 @@ def peg_world():
 
 
 @pytest.fixture(scope="module")
+def peg_env():
+    env = sim.AssemblyEnv("peg", e_r=0.02)
+    env.reset(seed=0)
+    yield env
+    env.close()
+
+
+@pytest.fixture(scope="module")
 def gear_world():
     w = sim.World("gear", ft_noise=False, image_noise=False)
     yield w, *w.place(sim.CONTEXTS["train"])
@@ -158,6 +166,13 @@ def test_env_interface_and_seeded_errors():
     R = env.task_rotation()
     np.testing.assert_allclose(np.r_[R.T @ f[:3], R.T @ f[3:]], [5, -5, 2.5, 0.5, 0, -0.5], atol=1e-12)
     env.close()
+
+
+@pytest.mark.parametrize("action", [np.full(6, np.nan), [0, 0, np.inf, 0, 0, 0], np.zeros(5), np.zeros((2, 6)),
+                                    "abcdef", None, [[0] * 6]])
+def test_step_refuses_an_action_that_is_not_6_finite_numbers(action, peg_env):
+    with pytest.raises(ValueError, match=r"^action .*6 finite numbers"):
+        peg_env.step(action)
 
 
 def test_reward_eq17():

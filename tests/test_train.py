@@ -6,6 +6,7 @@ import csv
 import json
 import os
 import shutil
+import sys
 
 import numpy as np
 import pytest
@@ -18,7 +19,8 @@ import sim
 import tacrl
 
 TINY = ["--task", "peg", "--error-mm", "1", "--train-episodes", "8", "--warmup", "1", "--updates", "2",
-        "--batch", "8", "--episodes", "1", "--eval-levels", "1", "--buffer", "40"]
+        "--batch", "8", "--episodes", "1", "--eval-levels", "1", "--buffer", "40", "--threads", "1"]
+# (--threads fixed: updates on 1 and 2 threads differ in the last digits, and the default follows the machine's load)
 SHORT = 15           # steps an episode, not 120: the untrained policy runs every one to the limit, and
                      # TINY's 40-transition ring wraps in mid-episode
 TIMES = ("env_s", "update_s", "elapsed_s")
@@ -31,11 +33,12 @@ def metrics(run_dir):
 
 @pytest.fixture(scope="module")
 def uninterrupted(tmp_path_factory):
+    """The same run never stopped, logged to TensorBoard as well (--track)."""
     run_dir = str(tmp_path_factory.mktemp("train") / "whole")
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(sim, "MAX_STEPS", SHORT)
-        tacrl.train(tacrl.parse_args(TINY + ["--run-dir", run_dir]), log=lambda *_: None)
-    return metrics(run_dir)
+        tacrl.train(tacrl.parse_args(TINY + ["--run-dir", run_dir, "--track"]), log=lambda *_: None)
+    return {"dir": run_dir, "rows": metrics(run_dir)}
 
 
 @pytest.fixture(scope="module")
@@ -67,8 +70,29 @@ def test_a_run_killed_and_resumed_is_the_same_run_as_one_never_stopped(tiny_run,
     # each episode is simulated in a new world and the replay buffer is rebuilt slot by slot, so the
     # resumed run repeats the uninterrupted one to the last digit (and two runs of a seed are the same)
     strip = lambda rows: [{k: v for k, v in r.items() if k not in TIMES} for r in rows]   # noqa: E731
-    assert len(uninterrupted) == 8 and any(float(r["q_loss"]) > 0 for r in uninterrupted)
-    assert strip(tiny_run["rows"]) == strip(uninterrupted)
+    assert len(uninterrupted["rows"]) == 8 and any(float(r["q_loss"]) > 0 for r in uninterrupted["rows"])
+    assert strip(tiny_run["rows"]) == strip(uninterrupted["rows"])     # (and --track changes nothing)
+
+
+def test_track_writes_what_tensorboard_reads(uninterrupted):
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+    ea = EventAccumulator(os.path.join(uninterrupted["dir"], "tb"), size_guidance={"scalars": 0, "images": 0})
+    ea.Reload()
+    rows = uninterrupted["rows"]
+    assert [(e.step, e.value) for e in ea.Scalars("charts/return")] == \
+        [(int(r["episode"]), pytest.approx(float(r["return"]))) for r in rows]
+    assert [e.step for e in ea.Scalars("losses/q_loss")] == [int(r["episode"]) for r in rows if r["q_loss"] != "nan"]
+    assert {"charts/e_r_mm", "charts/sr15", "losses/alpha", "time/update_s"} <= set(ea.Tags()["scalars"])
+    (image,) = ea.Images("obs/task_attention")                    # episode 1's, every TB_IMAGE_EVERY episodes
+    assert image.step == 1 and (image.width, image.height) == (sim.IMG, sim.IMG)
+    assert image.encoded_image_string.startswith(b"\x89PNG")
+
+
+def test_track_without_tensorboard_is_one_line_naming_the_extra(monkeypatch, capsys):
+    monkeypatch.setitem(sys.modules, "torch.utils.tensorboard", None)        # as if the extra were not installed
+    assert tacrl.main(["--task", "peg", "--track"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "pip install -e '.[track]'" in err and not os.path.exists("runs")
 
 
 def test_start_up_lines_give_the_config_and_the_parameter_counts(tiny_run):
