@@ -8,7 +8,7 @@ Observations are dicts of arrays, as the env gives them:
 Batched, a leading B. Actions are 6-D in [-1, 1] (the env maps them to F_d).
 
 The encoder (Fig. 4 of the paper) turns each modality into a 6-d feature and concatenates them:
-    image          -> 3-layer CNN, kernels 4/5/6, strides 3/3/4 (growing, as the paper says) -> 6
+    image          -> 3-layer CNN, kernels 4/5/8, strides 3/3/4 (growing, as the paper says) -> 6
     pose + wrench  -> 2-layer LSTM, 64 hidden, over the 32 steps of both series side by side
                       (12 inputs a step), last hidden state -> 12 = a 6-d pose and a 6-d touch feature
 The paper fuses to an 18-d vector from "a 6-d image feature" and "6-d time-series features"; we
@@ -24,17 +24,16 @@ The fused vector goes through LayerNorm and tanh, then the 2 x 256 heads.
 
 Critics: either the paper's (twin Q on the same multimodal encoder, which the actor then reads with
 the gradient stopped) or privileged ones (StateEncoder: the last pose and wrench readings plus a
-state vector that only training knows, here the offset from the true goal; the actor then has a
-multimodal encoder of its own). The actor is the same in both and never reads the state vector.
+state vector that only training knows, obs['state'], which the training loop fills; the actor then has
+a multimodal encoder of its own). The actor is the same in both and never reads the state vector.
 
-The replay buffer keeps its episodes on disk as well when given a directory, so that a run
-interrupted between episodes restarts with the same buffer.
+The replay buffer is a ring in memory (tacrl's rundir.py keeps its episodes on disk); the saved
+policy (save_policy, TrainedPolicy) is the actor and its encoder with the caller's metadata.
+Every hyper-parameter's default is the one tacrl.py trains with.
 """
-import collections
 import copy
 import os
 import pickle
-import time
 import warnings
 
 import numpy as np
@@ -139,20 +138,6 @@ class StateEncoder(nn.Module):
         return torch.cat([pose, wrench, obs["state"]], 1)
 
 
-STATE_DIM = 7
-
-
-def critic_state(goal_offset, t):
-    """What privileged critics read besides the last readings, obs['state'] (STATE_DIM,): the tip's offset
-    from the true goal X - X_g (x, y over 5 mm, z over 25 mm, yaw over 0.025 rad; m, rad), x and y again
-    through tanh(. / 1 mm) so that the last millimetre, where the chamfer catches or misses, stands out,
-    and the time t as a fraction of the episode. Training knows X_g (Eq. 17's reward is made of it); the
-    actor never reads this."""
-    off = goal_offset
-    return np.array([off[0] / 0.005, off[1] / 0.005, off[2] / 0.025, off[3] / 0.025, np.tanh(off[0] / 0.001),
-                     np.tanh(off[1] / 0.001), t], np.float32)
-
-
 # ---------------------------------------------------------------- actor and critics
 class Actor(nn.Module):
     """Fusion vector -> 2 x 256 MLP -> mean and log-std of a 6-d Gaussian, squashed by tanh."""
@@ -196,14 +181,10 @@ def act(enc, actor, obs, deterministic=False, device="cpu"):
 # ---------------------------------------------------------------- replay buffer
 class ReplayBuffer:
     """Ring buffer of transitions (o, a, r, o', terminated). Images are kept as uint8 (6.4 kB each);
-    o' is stored next to o, which doubles the memory but keeps sampling a plain index.
+    o' is stored next to o, which doubles the memory but keeps sampling a plain index. i: the next slot
+    to write; n: the transitions held."""
 
-    directory: where given, every episode is also written there as ep_NNNNNN.npz (plain arrays:
-    np.load needs no pickle). A checkpoint keeps `state_dict()`, the files the ring holds and where
-    it stands; `prune()`, called after the checkpoint is saved, deletes the files it no longer holds;
-    `restore(state)` rebuilds the ring exactly, every transition in its slot, after a restart."""
-
-    def __init__(self, capacity, obs_shapes, act_dim=6, directory=None):
+    def __init__(self, capacity, obs_shapes, act_dim=6):
         self.capacity, self.n, self.i = capacity, 0, 0
         self.obs = {k: np.zeros((capacity, *s), np.uint8 if k == "image" else np.float32)
                     for k, s in obs_shapes.items()}
@@ -211,16 +192,14 @@ class ReplayBuffer:
         self.act = np.zeros((capacity, act_dim), np.float32)
         self.rew = np.zeros(capacity, np.float32)
         self.term = np.zeros(capacity, np.float32)
-        self.directory = directory             # made when the first episode is written to it
-        self.files = collections.deque()       # [file name, transitions] of the episodes on disk, oldest first
 
     def __len__(self):
         return self.n
 
-    def add_episode(self, ep, number=None):
+    def add_episode(self, ep):
         """ep: {'obs': {k: (T + 1, ...)}, 'act': (T, 6), 'rew': (T,), 'term': (T,)}: the T + 1
         observations of one episode and its T transitions; obs keys the buffer was not built for are
-        ignored. number: the episode's number, which names its file (with a directory)."""
+        ignored."""
         T = len(ep["act"])
         j = (self.i + np.arange(T)) % self.capacity          # the slots this episode takes
         for k in self.obs:
@@ -229,58 +208,6 @@ class ReplayBuffer:
         self.act[j], self.rew[j], self.term[j] = ep["act"], ep["rew"], ep["term"]
         self.i = (self.i + T) % self.capacity
         self.n = min(self.n + T, self.capacity)
-        if self.directory and number is not None:
-            name = f"ep_{number:06d}.npz"
-            path = os.path.join(self.directory, name)
-            os.makedirs(self.directory, exist_ok=True)
-            np.savez(path + ".tmp.npz", act=ep["act"], rew=ep["rew"], term=ep["term"],
-                     **{"obs_" + k: ep["obs"][k] for k in self.obs})
-            os.replace(path + ".tmp.npz", path)              # an interrupt leaves no half-written file
-            self.files.append([name, T])
-
-    def _unheld(self):
-        """How many of the oldest files the ring no longer needs: the newer ones alone fill it."""
-        held, k = sum(t for _, t in self.files), 0
-        while k < len(self.files) and held - self.files[k][1] >= self.capacity:
-            held -= self.files[k][1]
-            k += 1
-        return k
-
-    def state_dict(self):
-        return {"i": self.i, "n": self.n, "files": [list(f) for f in list(self.files)[self._unheld():]]}
-
-    def prune(self):
-        for _ in range(self._unheld()):
-            os.remove(os.path.join(self.directory, self.files.popleft()[0]))
-
-    def restore(self, state):
-        """Refill the ring from the files a checkpoint's state_dict names, each transition in the slot
-        it had, then delete the other episode files (one cut short by an interrupt, or no longer held).
-        A named file that is missing or damaged is a ValueError that names it, raised before any change."""
-        episodes = []
-        for name, T in state["files"]:
-            path = os.path.join(self.directory, name)
-            if not os.path.exists(path):
-                raise ValueError(f"replay/{name} is missing")
-            try:
-                # opened here: np.load leaves a damaged zip's file open, and Python warns of it
-                with open(path, "rb") as f, np.load(f, allow_pickle=False) as z:
-                    ep = {"obs": {k: z["obs_" + k] for k in self.obs}, "act": z["act"], "rew": z["rew"], "term": z["term"]}
-                if len(ep["act"]) != T or any(len(v) != T + 1 for v in ep["obs"].values()):
-                    raise ValueError(f"{len(ep['act'])} transitions, not {T}")
-            except Exception as e:
-                raise ValueError(f"replay/{name} is damaged ({type(e).__name__}: {str(e)[:80]})")
-            episodes.append(ep)
-        self.i = (state["i"] - sum(t for _, t in state["files"])) % self.capacity
-        self.n, self.files = 0, collections.deque(list(f) for f in state["files"])
-        for ep in episodes:
-            self.add_episode(ep)
-        if (self.i, self.n) != (state["i"], state["n"]):
-            raise ValueError("the replay files do not fill the ring as the checkpoint says")
-        names = {name for name, _ in state["files"]}
-        for f in os.listdir(self.directory) if os.path.isdir(self.directory) else []:
-            if f.startswith("ep_") and f.endswith(".npz") and f not in names:
-                os.remove(os.path.join(self.directory, f))
 
     def sample(self, batch, rng, jitter_s=0.0):
         """A batch of transitions (o, a, r, o', terminated); with jitter_s, their images jittered (--augment)."""
@@ -323,7 +250,7 @@ class SAC:
     """
 
     def __init__(self, obs_kind="ts-ptv", pose_scale=np.ones(6), wrench_scale=np.ones(6), act_dim=6,
-                 lr=3e-4, gamma=0.99, tau=0.005, init_alpha=0.1, target_entropy=None, state_dim=0, device="cpu"):
+                 lr=3e-4, gamma=0.95, tau=0.005, init_alpha=0.1, target_entropy=None, state_dim=0, device="cpu"):
         self.device, self.gamma, self.tau = torch.device(device), gamma, tau
         self.shared = not state_dim                  # the paper's critics lend the actor their encoder
         enc = lambda: Encoder(obs_kind, pose_scale, wrench_scale).to(self.device)  # noqa: E731
@@ -355,19 +282,6 @@ class SAC:
         shared = ", shared with the critics" if self.shared else ""
         return (f"actor {n(self.actor_enc, self.actor):,} (encoder {n(self.actor_enc):,}{shared}), "
                 f"critics {n(self.enc, self.q):,} (encoder {n(self.enc):,}, twin Q {n(self.q):,})")
-
-    def update_seconds(self, obs_shapes, batch):
-        """Seconds one update takes, from three made on a copy (this SAC, and torch's random numbers, are
-        left as they were): for an ETA before the first update."""
-        obs = {k: np.zeros((batch, *s), np.uint8 if k == "image" else np.float32) for k, s in obs_shapes.items()}
-        fake = (obs, np.zeros((batch, 6), np.float32), np.zeros(batch, np.float32), obs, np.zeros(batch, np.float32))
-        with torch.random.fork_rng(devices=[self.device] if self.device.type == "cuda" else []):
-            probe = copy.deepcopy(self)
-            probe.update(fake)                       # the first call allocates
-            t0 = time.perf_counter()
-            for _ in range(3):
-                probe.update(fake)
-        return (time.perf_counter() - t0) / 3
 
     def update(self, batch):
         """One gradient step on a batch from ReplayBuffer.sample; returns the losses."""
@@ -408,7 +322,8 @@ class SAC:
         self.alpha_opt.step()
 
         with torch.no_grad():   # Polyak averaging of the targets: p_targ <- (1 - tau) p_targ + tau p
-            torch._foreach_lerp_(self._targ_params, self._online_params, self.tau)
+            for p_targ, p in zip(self._targ_params, self._online_params):
+                p_targ.lerp_(p, self.tau)
         return {"q_loss": q_loss.item(), "pi_loss": pi_loss.item(), "alpha": alpha.item(),
                 "entropy": -logp.mean().item()}
 

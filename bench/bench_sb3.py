@@ -29,6 +29,7 @@ import numpy as np
 import torch
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+import evaluate  # noqa: E402
 import curriculum  # noqa: E402
 import sim  # noqa: E402
 import tacrl  # noqa: E402
@@ -114,7 +115,7 @@ def run_sb3(seed, threads, seconds):
     env.close()
     act = lambda obs: model.predict(SameTask.observation(obs), deterministic=True)[0]   # noqa: E731
     with sim.AssemblyEnv("peg", e_r=sim.E_R_FINAL, ex_r=ex_r) as eval_env:   # its controller as training ended
-        row = tacrl.evaluate(eval_env, act, 20, tacrl.EVAL_SEED + seed, log=lambda *_: None)
+        row = evaluate.evaluate(eval_env, act, 20, evaluate.EVAL_SEED + seed, log=lambda *_: None)
     return {"train_minutes": seconds / 60, "episodes": len(episodes), "final_e_r_mm": 1000 * max(
         (x[1] for x in episodes), default=0.0), "to_criterion": minutes_to_criterion(episodes),
         "sr20": row["success_rate"], "ct20": row["completion_time_s"]}

@@ -25,7 +25,7 @@ VARIANTS = [("2 threads, OpenMP default wait (torch's default)", 2, {}),
             ("2 threads, OMP_WAIT_POLICY=ACTIVE", 2, {"OMP_WAIT_POLICY": "ACTIVE"}),
             ("2 threads, OMP_WAIT_POLICY=PASSIVE", 2, {"OMP_WAIT_POLICY": "PASSIVE"}),
             ("2 threads, GOMP_SPINCOUNT=10000", 2, {"GOMP_SPINCOUNT": "10000"}),
-            ("tacrl's default: a thread a free core (cli.CoreShare)", 0, {}),
+            ("tacrl's default: a thread a free core (tacrl.CoreShare)", 0, {}),
             ("1 thread", 1, {}),
             ("1 thread, OMP_WAIT_POLICY=PASSIVE", 1, {"OMP_WAIT_POLICY": "PASSIVE"})]
 WAIT_VARS = ("OMP_WAIT_POLICY", "GOMP_SPINCOUNT", "OMP_NUM_THREADS")
@@ -37,9 +37,8 @@ def worker(threads, updates):
     sys.path.insert(0, ROOT)
     import torch
     from bench_sac import filled_buffer
-    import cli
     import tacrl
-    share = cli.CoreShare(threads)
+    share = tacrl.CoreShare(threads)
     torch.set_num_threads(share.free())
     rng = np.random.default_rng(0)
     buf, sac = filled_buffer(rng), tacrl.make_sac(tacrl.Config(), "cpu")

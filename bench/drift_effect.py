@@ -1,5 +1,5 @@
 """What the wrist sensor's drift rate does to results: trained runs (and the hand-designed policy, and the
-two-step baseline) evaluated with sim.FT_DRIFT scaled by each factor, on the same held-out episodes.
+two-step baseline) evaluated with scene.FT_DRIFT scaled by each factor, on the same held-out episodes.
 
 No data sheet gives a drift rate (README difference 15). Scale 1 is ours (3 sigma reaches the FT 300's
 1 N contact threshold in a 24 s episode: 0.068 N / sqrt(s)); scale 2.1 is the one published measurement
@@ -15,10 +15,12 @@ import sys
 import torch
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "tools"))
+import evaluate  # noqa: E402
+import legacy  # noqa: E402
 import baselines  # noqa: E402
 import report  # noqa: E402
-import sim  # noqa: E402
-import tacrl  # noqa: E402
+import scene  # noqa: E402
 
 
 def main():
@@ -30,28 +32,28 @@ def main():
     ap.add_argument("--episodes", type=int, default=20)
     a = ap.parse_args()
     torch.set_num_threads(1)
-    drift = sim.FT_DRIFT.copy()
+    drift = scene.FT_DRIFT.copy()
     print(f"{a.episodes} held-out trials each: SR, mean cumulative reward, at each drift scale "
           f"({' / '.join(f'{k:g}' for k in a.scales)})", flush=True)
     for name in a.policies:
-        if name in tacrl.BASELINES:
+        if name in baselines.NAMES:
             task, seed, pi = a.task, 0, None
             levels = (0.0, a.error_mm) if name == "initial" else (a.error_mm,)
         else:
             cfg = report.load_run(name)["cfg"]
             task, seed = cfg["task"], cfg["seed"]
-            pi = tacrl.load_policy(os.path.join(name, "policy.pt"), task)
+            pi = legacy.load_policy(os.path.join(name, "policy.pt"), task)
             levels = (a.error_mm,)
         for mm in levels:
             cells = []
             for k in a.scales:
-                sim.FT_DRIFT = drift * k            # read by World.wrench_tool at every reading
-                with tacrl.eval_env(task, pi, e_r_mm=mm) as env:
+                scene.FT_DRIFT = drift * k            # read by World.wrench_tool at every reading
+                with evaluate.eval_env(task, pi, e_r_mm=mm) as env:
                     act = pi if pi is not None else baselines.make(name, env)
-                    row = tacrl.evaluate(env, act, a.episodes, tacrl.EVAL_SEED + seed, log=lambda *_: None)
+                    row = evaluate.evaluate(env, act, a.episodes, evaluate.EVAL_SEED + seed, log=lambda *_: None)
                 cells.append(f"{row['success_rate']:.2f} {row['cumulative_reward'][0]:6.1f}")
             print(f"  {name:40s} {task:4s} {mm:4.0f} mm   " + "   ".join(cells), flush=True)
-    sim.FT_DRIFT = drift
+    scene.FT_DRIFT = drift
 
 
 if __name__ == "__main__":

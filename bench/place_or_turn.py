@@ -9,7 +9,11 @@ import sys
 import torch
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "tools"))
+import evaluate  # noqa: E402
+import legacy  # noqa: E402
 import report  # noqa: E402
+import scene  # noqa: E402
 import sim  # noqa: E402
 import tacrl  # noqa: E402
 
@@ -24,13 +28,13 @@ def main():
     torch.set_num_threads(1)
     run = report.load_run(a.run_dir)
     cfg, ctx = run["cfg"], sim.CONTEXTS[a.context]
-    act = tacrl.load_policy(os.path.join(run["dir"], "policy.pt"), cfg["task"])
-    sim.CONTEXTS["place only"] = sim.Context(board_xy=ctx.board_xy, board_yaw=0.0)
-    sim.CONTEXTS["turn only"] = sim.Context(board_yaw=ctx.board_yaw)
+    act = legacy.load_policy(os.path.join(run["dir"], "policy.pt"), cfg["task"])
+    sim.CONTEXTS["place only"] = scene.Context(board_xy=ctx.board_xy, board_yaw=0.0)
+    sim.CONTEXTS["turn only"] = scene.Context(board_yaw=ctx.board_yaw)
     print(f"{a.run_dir}, {a.error_mm:g} mm, {a.episodes} held-out trials: SR, mean cumulative reward")
     for name in ("train", a.context, "place only", "turn only"):
-        with tacrl.eval_env(cfg["task"], act, name, cfg["roi"], cfg["clearance_mm"]) as env:
-            row = tacrl.evaluate_levels(env, act, (a.error_mm,), a.episodes, tacrl.EVAL_SEED + cfg["seed"],
+        with evaluate.eval_env(cfg["task"], act, name, cfg["roi"], cfg["clearance_mm"]) as env:
+            row = tacrl.evaluate_levels(env, act, (a.error_mm,), a.episodes, evaluate.EVAL_SEED + cfg["seed"],
                                         log=lambda *_: None)[0]
         print(f"  {name:11s} {row['success_rate']:.2f}  {row['cumulative_reward'][0]:7.1f}", flush=True)
 

@@ -1,12 +1,11 @@
 """The two-step baseline's parts (hole detection, calibration and visual servo), and the command lines
-of seeds.py."""
+of tools/seeds.py."""
 import os
 
 import numpy as np
 import pytest
 
 import baselines
-import cli
 import seeds
 import sim
 import tacrl
@@ -76,7 +75,7 @@ def test_seeds_never_ask_for_more_threads_than_cores_and_warn_where_the_user_doe
 @pytest.mark.parametrize("argv", [[], ["--task", "peg"], ["0,x"], ["1,1"], ["0,1", "--task", "screw"],
                                   ["0,1", "--eval", "initial"]])
 def test_seeds_mistakes_are_one_line_and_exit_2(argv, capsys):
-    assert cli.command("seeds", lambda: seeds.main(argv)) == 2
+    assert tacrl.command("seeds", lambda: seeds.main(argv)) == 2
     err = capsys.readouterr().err
     assert err.startswith("seeds: error:") and err.count("\n") == 1
 

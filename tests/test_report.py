@@ -49,8 +49,8 @@ def test_runs_of_the_older_formats_read_through_the_legacy_shims(tmp_path):
            "e_r_max": 0.02, "enc": sac.enc.state_dict(), "actor_enc": sac.actor_enc.state_dict(),
            "actor": sac.actor.state_dict()}
     torch.save(old, tmp_path / "policy.pt")
-    assert tacrl.read_config(str(tmp_path)) == tacrl.Config()
-    pi = tacrl.load_policy(str(tmp_path / "policy.pt"), "peg")
+    assert legacy.read_config(str(tmp_path)) == tacrl.Config()
+    pi = legacy.load_policy(str(tmp_path / "policy.pt"), "peg")
     assert pi.meta["roi"] == "task" and "enc" not in pi.meta
     obs = {"image": np.zeros((80, 80), np.uint8), "pose_hist": np.zeros((32, 6), np.float32),
            "wrench_hist": np.zeros((32, 6), np.float32)}

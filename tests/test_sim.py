@@ -6,13 +6,15 @@ import numpy as np
 import pytest
 
 import control as ctl
+import instruments
+import scene
 import sim
 
 
 # the geometry tests hold the tool stiffly and read the wrench exactly: the sensor's noise is tested apart
 @pytest.fixture(scope="module")
 def peg_world():
-    w = sim.World("peg", ft_noise=False, image_noise=False)
+    w = scene.World("peg", ft_noise=False, image_noise=False)
     yield w, *w.place(sim.CONTEXTS["train"])
     w.close()
 
@@ -27,7 +29,7 @@ def peg_env():
 
 @pytest.fixture(scope="module")
 def gear_world():
-    w = sim.World("gear", ft_noise=False, image_noise=False)
+    w = scene.World("gear", ft_noise=False, image_noise=False)
     yield w, *w.place(sim.CONTEXTS["train"])
     w.close()
 
@@ -35,7 +37,7 @@ def gear_world():
 def insert(world, x_g, x_i, dx=0.0, dyaw=0.0, duration=3.0):
     """Stiff lateral hold at (dx, dyaw) off the goal, soft in z, aim 5 mm below X_g in `duration` s."""
     R = ctl.rot_z(dyaw) @ x_g[1]
-    x, f, _ = sim.probe(world, (x_i[0] + [dx, 0, 0], R), (x_g[0] + [dx, 0, -0.005], R), duration=duration,
+    x, f, _ = instruments.probe(world, (x_i[0] + [dx, 0, 0], R), (x_g[0] + [dx, 0, -0.005], R), duration=duration,
                         seconds=duration + 3.0)
     return x, f
 
@@ -61,7 +63,7 @@ def test_peg_inserts_when_centred(peg_world):
     w, x_g, x_i = peg_world
     x, _ = insert(w, x_g, x_i, 0.0)
     assert sim.is_success(x, x_g)
-    assert sim.BOARD_THICK - x[0][2] > 0.023             # 23+ mm deep in the hole
+    assert scene.BOARD_THICK - x[0][2] > 0.023             # 23+ mm deep in the hole
 
 
 def test_centred_peg_with_lateral_noise_is_not_jammed():
@@ -84,7 +86,7 @@ def test_peg_blocked_off_centre(peg_world, dx):
     w, x_g, x_i = peg_world
     x, f = insert(w, x_g, x_i, dx, duration=10.0)
     assert not sim.is_success(x, x_g)
-    assert sim.BOARD_THICK - x[0][2] < 0.001             # resting on the chamfer / rim
+    assert scene.BOARD_THICK - x[0][2] < 0.001             # resting on the chamfer / rim
     assert -f[2] > 0.5                                   # and the sensor feels the board push back
 
 
@@ -109,8 +111,8 @@ def test_wrist_sensor_reads_pressed_force(peg_world):
     # the contact normal forces pybullet reports on the robot. They are a snapshot of the last
     # physics step of each tick and chatter with the impacts, so their 1 s mean gets a 30 % bound.
     w, x_g, _ = peg_world
-    p0 = x_g[0] + [0.035, 0.0, sim.HOLE_DEPTH]
-    x, f, normal = sim.probe(w, (p0 + [0, 0, 0.01], x_g[1]), (p0.copy(), x_g[1]),
+    p0 = x_g[0] + [0.035, 0.0, scene.HOLE_DEPTH]
+    x, f, normal = instruments.probe(w, (p0 + [0, 0, 0.01], x_g[1]), (p0.copy(), x_g[1]),
                              f_d=np.array([0, 0, 5.0, 0, 0, 0]), ex=(0.002, 0.002, 0.02, 0.02, 0.02, 0.01))
     assert abs(-f[2] - 5.0) < 0.5, f
     assert abs(normal - 5.0) < 1.5, normal
@@ -194,7 +196,7 @@ def test_roi_eq11_covers_the_error_range():
     assert 0 <= u0 < u1 <= full and 0 <= v0 < v1 <= full
     assert 50 < u1 - u0 < full and 50 < v1 - v0 < full        # a window, not the whole view
     # the hole seen from X_i shifted by the final error range lies inside the ROI
-    small = sim.roi_box(env.world, env.x_i, (env.x_g[0] + [0, 0, sim.HOLE_DEPTH], np.eye(3)), 0.01, 0.0, (0, 1))
+    small = sim.roi_box(env.world, env.x_i, (env.x_g[0] + [0, 0, scene.HOLE_DEPTH], np.eye(3)), 0.01, 0.0, (0, 1))
     assert small[0] >= u0 and small[1] >= v0 and small[2] <= u1 and small[3] <= v1
     env.close()
     wide = sim.AssemblyEnv("peg", e_r=0.0, image=False, e_r_max=0.03)   # built for 30 mm: a larger window
@@ -232,7 +234,7 @@ def test_contexts_change_the_scene_not_the_task_relative_pose(ctx):
 def test_background_objects_stay_outside_the_task_roi_at_every_error_but_show_in_the_full_view(task, monkeypatch):
     # the largest errors (x, y at +-20 mm, raised 20 mm, turned +-0.1 rad) move the camera most; the objects
     # must not reach the task ROI's window at any of them. The full view shows them.
-    monkeypatch.setitem(sim.CONTEXTS, "bare", sim.Context())
+    monkeypatch.setitem(sim.CONTEXTS, "bare", scene.Context())
     errors = [np.array([x, y, 0.02, r]) for x in (-0.02, 0.02) for y in (-0.02, 0.02) for r in (-0.1, 0.1)]
 
     def images(ctx, roi="task", errs=errors):
@@ -304,14 +306,14 @@ def test_lateral_play_is_the_clearance_at_every_yaw(task, c_mm):
     # (peg: 22.5 deg, whose steps of 3.75 deg fall between the peg's own 4.5 deg pattern) or of the
     # gear's bore (30 deg)
     period = 2 * np.pi / (16 if task == "peg" else 12)
-    play = sim.lateral_play(task, c_mm / 1000, np.linspace(0, period, 6, endpoint=False))
+    play = instruments.lateral_play(task, c_mm / 1000, np.linspace(0, period, 6, endpoint=False))
     assert np.abs(play * 1000 - c_mm).max() <= 0.02, np.round(play * 1000, 4)
 
 
 def sensor_readings(episodes, ticks, seed=0):
     """The sensor model alone (no physics): `ticks` readings of a constant zero wrench after taring,
     for each of `episodes` episodes; (episodes, ticks, 6) in the tool frame at the tip."""
-    w = sim.World.__new__(sim.World)               # the sensor's state and arithmetic, without a simulator
+    w = scene.World.__new__(scene.World)               # the sensor's state and arithmetic, without a simulator
     w.ft_noise, w.tip_offset, w.f_bias = True, 0.0, np.zeros(6)
     w.noise_rng = np.random.default_rng(seed)
     out = np.zeros((episodes, ticks, 6))
@@ -325,11 +327,11 @@ def sensor_readings(episodes, ticks, seed=0):
 def test_wrist_sensor_noise_and_drift_have_the_data_sheets_magnitudes():
     r = sensor_readings(40, sim.MAX_STEPS * sim.CONTROL_PER_POLICY)       # 40 episodes of 24 s
     white = np.diff(r, axis=1).std(axis=(0, 1)) / np.sqrt(2)              # tick to tick: the signal noise
-    assert np.allclose(white, sim.FT_NOISE, rtol=0.05), white
+    assert np.allclose(white, scene.FT_NOISE, rtol=0.05), white
     drift = r[:, -sim.CONTROL_HZ:].mean(1)                                 # the last second's mean: the bias
-    assert np.allclose(drift.std(0), sim.FT_DRIFT * np.sqrt(24.0), rtol=0.35), drift.std(0)
+    assert np.allclose(drift.std(0), scene.FT_DRIFT * np.sqrt(24.0), rtol=0.35), drift.std(0)
     # the first second's mean: the noise averaged over 120 readings, and a random walk's mean over [0, 1 s]
-    first = np.sqrt(sim.FT_NOISE ** 2 / sim.CONTROL_HZ + sim.FT_DRIFT ** 2 / 3)
+    first = np.sqrt(scene.FT_NOISE ** 2 / sim.CONTROL_HZ + scene.FT_DRIFT ** 2 / 3)
     assert np.allclose(r[:, :sim.CONTROL_HZ].mean(1).std(0), first, rtol=0.35)
 
 
@@ -344,25 +346,25 @@ def test_sensing_noise_reaches_the_policy_and_can_be_switched_off():
             return obs["wrench_hist"][-12:], again - img0, img0
     f, dimg, img = rest()
     # the policy's wrench is the mean of 24 readings: the noise shrinks by sqrt(24), the drift stays
-    assert (f.std(0) > 0.3 * sim.FT_NOISE / np.sqrt(24)).all() and (np.abs(f).max(0) < 2.0).all(), f
+    assert (f.std(0) > 0.3 * scene.FT_NOISE / np.sqrt(24)).all() and (np.abs(f).max(0) < 2.0).all(), f
     mid = (img > 100) & (img < 160)                # frame to frame at mid gray: sqrt(2 y / E_PER_DN)
-    assert abs(dimg[mid].std() / np.sqrt(2 * img[mid].mean() / sim.E_PER_DN) - 1) < 0.25
+    assert abs(dimg[mid].std() / np.sqrt(2 * img[mid].mean() / scene.E_PER_DN) - 1) < 0.25
     f, dimg, _ = rest(ft_noise=False, image_noise=False)
     assert np.abs(f).max() < 1e-3 and np.abs(dimg).max() == 0
 
 
 def test_board_bumps_are_fixed_per_board_and_keep_out_of_the_hole():
-    r_clear = sim.PEG_RADIUS + 5e-5 - sim.CONTACT_SLOP + sim.CHAMFER + 3e-4     # as World builds the default board
-    bumps = sim.board_bumps(r_clear)
-    assert bumps == sim.board_bumps(r_clear) and bumps != sim.board_bumps(r_clear, seed=1)
-    w = sim.World("peg")
+    r_clear = scene.PEG_RADIUS + 5e-5 - scene.CONTACT_SLOP + scene.CHAMFER + 3e-4     # as World builds the default board
+    bumps = scene.board_bumps(r_clear)
+    assert bumps == scene.board_bumps(r_clear) and bumps != scene.board_bumps(r_clear, seed=1)
+    w = scene.World("peg")
     (p_g, R_g), _ = w.place(sim.CONTEXTS["loc-1"])
-    top = p_g[2] + sim.HOLE_DEPTH
+    top = p_g[2] + scene.HOLE_DEPTH
     for rho, c in bumps:
         d = np.hypot(c[0], c[1])
-        assert d - rho >= r_clear - 1e-9 and d <= sim.BUMP_R_MAX
+        assert d - rho >= r_clear - 1e-9 and d <= scene.BUMP_R_MAX
         h = c[2] + rho                                    # the cap's height above the board's top
-        assert sim.BUMP_H[0] <= h <= sim.BUMP_H[1]
+        assert scene.BUMP_H[0] <= h <= scene.BUMP_H[1]
         xy = p_g[:2] + ctl.rot_z(w.goal_yaw)[:2, :2] @ np.array(c[:2])
         hit = w.bc.rayTest([xy[0], xy[1], top + 0.01], [xy[0], xy[1], top - 0.01])[0]
         assert abs(hit[3][2] - (top + h)) < 2e-5, (hit, h)   # the simulator's surface has it

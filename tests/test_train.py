@@ -12,9 +12,11 @@ import numpy as np
 import pytest
 import torch
 
-import cli
+import evaluate
 import policy
 import report
+import rundir
+import scene
 import sim
 import tacrl
 
@@ -102,7 +104,7 @@ def test_start_up_lines_give_the_config_and_the_parameter_counts(tiny_run):
 
 def test_a_kill_loses_only_the_episode_in_flight(tiny_run):
     assert [int(r["episode"]) for r in tiny_run["rows_at_kill"]] == list(range(1, 5))
-    assert tiny_run["replay_at_kill"][-1] == "ep_000005.npz"       # written, but not in the checkpoint
+    assert tiny_run["replay_at_kill"][-1] == "ep_000004.npz"       # the episode in flight's is not written
     assert any(x.startswith(f"resumed {tiny_run['dir']} at episode 4 of 8: ") for x in tiny_run["second"])
     episodes = [x.split()[1] for x in tiny_run["second"] if x.startswith("ep ")]
     assert episodes == [f"{k}/8" for k in range(5, 9)]
@@ -176,7 +178,7 @@ def test_archive_keeps_what_the_report_reads_and_skips_unfinished_runs(tiny_run,
         [str(results / "run")]
     assert sorted(os.listdir(results / "run")) == ["config.json", "curves.png", "eval.json", "metrics.csv", "policy.pt"]
     assert any(str(unfinished) in x and "not finished" in x for x in lines)
-    assert cli.command("report", lambda: report.main([str(unfinished), "--archive"])) == 2
+    assert tacrl.command("report", lambda: report.main([str(unfinished), "--archive"])) == 2
 
 
 def test_report_is_written_from_an_archive(tiny_run, tmp_path):
@@ -189,7 +191,7 @@ def test_report_is_written_from_an_archive(tiny_run, tmp_path):
            "episodes": 20}      # the two-step row's cache: evaluating the baseline takes a minute
     (docs / "two-step-peg-20mm.json").write_text(json.dumps(row))
     (docs / "fig-peg-obs.png").write_bytes(b"an earlier report's figure, of runs this one has not got")
-    assert cli.command("report", lambda: report.main([str(results / "*"), "--out", str(docs)])) == 0
+    assert tacrl.command("report", lambda: report.main([str(results / "*"), "--out", str(docs)])) == 0
     text = (docs / "RESULTS.md").read_text()
     assert str(results / "run") in text and "Table 1" in text and "Table 2" in text
     assert "| two-step | - | 0.50 | 10.00 +- 1.00 |" in text
@@ -255,12 +257,11 @@ def test_a_run_stops_when_the_greedy_policy_passes_validation_twice(tmp_path, mo
 
 
 def test_the_eta_counts_the_updates_still_to_come_during_the_warmup():
-    cfg = tacrl.Config(train_episodes=300, warmup=20)
-    # after episode 1 of the warm-up (1 s of env), before any update: 299 episodes of env, 280 with an
-    # update phase as long as the probe measured (6 s)
-    assert tacrl.eta_seconds(0, cfg, [1.0], [], 6.0) == pytest.approx(299 * 1.0 + 280 * 6.0)
+    # after episode 1 of 300 (a warm-up of 20; 1 s of env), before any update: 299 episodes of env, 280 with
+    # an update phase as long as the probe measured (6 s)
+    assert rundir.eta_seconds(1, 300, 20, [1.0], [], 6.0) == pytest.approx(299 * 1.0 + 280 * 6.0)
     # later, the update phases measured replace the probe
-    assert tacrl.eta_seconds(99, cfg, [2.0] * 100, [4.0] * 80, 6.0) == pytest.approx(200 * (2.0 + 4.0))
+    assert rundir.eta_seconds(100, 300, 20, [2.0] * 100, [4.0] * 80, 6.0) == pytest.approx(200 * (2.0 + 4.0))
 
 
 def test_every_context_is_evaluated_once_and_the_table_names_each(tiny_run, tmp_path, monkeypatch):
@@ -273,9 +274,9 @@ def test_every_context_is_evaluated_once_and_the_table_names_each(tiny_run, tmp_
     assert (out / "ctx-peg-bars.png").stat().st_size > 0 and (out / "ctx-peg-views.png").stat().st_size > 0
     cached = json.loads(open(os.path.join(tiny_run["dir"], "eval-ctx-loc-2.json")).read())
     assert cached["world"] == sim.WORLD and cached["context"] == repr(sim.CONTEXTS["loc-2"])
-    monkeypatch.setattr(tacrl, "evaluate_levels", lambda *a, **k: pytest.fail("evaluated again"))
+    monkeypatch.setattr(evaluate, "evaluate_levels", lambda *a, **k: pytest.fail("evaluated again"))
     report.write_contexts(tiny_run["dir"], str(out), levels=(1.0,), episodes=1, log=lambda *_: None)
     # a redefined context is evaluated again
-    monkeypatch.setitem(sim.CONTEXTS, "loc-2", sim.Context(board_xy=(0.6, -0.2), board_yaw=0.3))
+    monkeypatch.setitem(sim.CONTEXTS, "loc-2", scene.Context(board_xy=(0.6, -0.2), board_yaw=0.3))
     with pytest.raises(pytest.fail.Exception, match="evaluated again"):
         report.write_contexts(tiny_run["dir"], str(out), levels=(1.0,), episodes=1, log=lambda *_: None)

@@ -1,10 +1,9 @@
 """figures.py: the figures of tacrl, drawn the way the paper draws them: learning curves smoothed over
 15 episodes with a 95 % bootstrap band over seeds (Sec. 5.1.5; Figs. 7, 9-11, 14), the context
 generalization bars (Fig. 12), what the policy sees in each context, and one episode's observations
-and actions by phase (Fig. 16). Arrays in, PNG files out; tacrl.py draws a run's curves.png with
-plot_curves, report.py the rest.
+and actions by phase (Fig. 16). Arrays in, PNG files out, for report.py (a run's own curves.png:
+rundir.plot_curves).
 """
-import csv
 
 import matplotlib
 
@@ -13,35 +12,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 import sim  # noqa: E402
-
-CURVES = {"return": "cumulative reward (mean of 15)", "sr15": "success rate (last 15)",
-          "e_r_mm": "guidance error range E_r (mm)", "ex_r_mm": "exploration range Ex_r (mm)"}
-
-
-def plot_curves(metrics_path, out, title=""):
-    """A run's curves.png (Fig. 10 style): cumulative reward, success rate over the last 15, E_r and
-    Ex_r against episode, from its metrics.csv."""
-    with open(metrics_path) as f:
-        rows = list(csv.DictReader(f))
-    m = {k: np.array([float(r[k]) for r in rows]) for k in ("episode", *CURVES)}
-    fig, axs = plt.subplots(1, len(CURVES), figsize=(16, 3.4))
-    for ax, key in zip(axs, CURVES):
-        if key == "return":
-            ax.plot(m["episode"], m[key], lw=0.7, alpha=0.5, label="episode")
-            ax.plot(m["episode"], smooth(m[key]), lw=1.5, label="mean of 15")
-            ax.legend(fontsize=8)
-        else:
-            ax.plot(m["episode"], m[key])
-        if key == "sr15":
-            ax.set_ylim(-0.05, 1.05)
-        ax.set_xlabel("episode")
-        ax.set_ylabel(CURVES[key])
-        ax.grid(alpha=0.3)
-    fig.suptitle(title)
-    fig.subplots_adjust(left=0.045, right=0.99, bottom=0.15, top=0.87, wspace=0.28)   # (tight_layout: a 2nd draw)
-    fig.savefig(out, dpi=110)
-    plt.close(fig)
-
+from rundir import CURVES, smooth  # noqa: E402
 
 def bootstrap_band(curves, n=1000, seed=0):
     """curves: seeds x episodes -> mean and the 95% bootstrap interval of the mean over seeds."""
@@ -49,13 +20,6 @@ def bootstrap_band(curves, n=1000, seed=0):
     rng = np.random.default_rng(seed)
     boots = c[rng.integers(0, len(c), (n, len(c)))].mean(1)
     return c.mean(0), np.percentile(boots, 2.5, 0), np.percentile(boots, 97.5, 0)
-
-
-def smooth(x, k=15):
-    """Moving average over k episodes (shorter at the start), as the paper smooths its curves."""
-    c = np.cumsum(np.insert(np.asarray(x, float), 0, 0.0))
-    n = np.minimum(np.arange(1, len(x) + 1), k)
-    return (c[1:] - c[np.arange(1, len(x) + 1) - n]) / n
 
 
 def plot_groups(groups, keys, out, title):

@@ -6,8 +6,8 @@ lives on the machine that trained it (its checkpoint and replay are hundreds of 
 copies what the report reads (under 1 MB a run) to results/, which the repository keeps, so the
 report can be regenerated from a fresh clone:
 
-    python report.py --archive "runs/*"       # finished runs -> results/<run name>/
-    python report.py "results/*"              # -> docs/RESULTS.md, docs/fig-*.png
+    python tools/report.py --archive "runs/*"       # finished runs -> results/<run name>/
+    python tools/report.py "results/*"              # -> docs/RESULTS.md, docs/fig-*.png
 
 It evaluates what it needs and has not got yet (the two-step baseline, the unseen contexts) and
 caches those rows beside the runs. docs/results-notes.md, the hand-written reading of the numbers,
@@ -28,12 +28,15 @@ if __name__ == "__main__":     # Ctrl-C while torch and pybullet load: one line 
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))   # the core modules, one folder up
 import baselines  # noqa: E402
-import cli  # noqa: E402
+import evaluate  # noqa: E402
 import figures  # noqa: E402
+import legacy  # noqa: E402
+import rundir  # noqa: E402
 import sim  # noqa: E402
 import tacrl  # noqa: E402
-from cli import ArgError  # noqa: E402
+from tacrl import ArgError  # noqa: E402
 
 
 # The paper's numbers, next to which ours stand. Table 1: simulated peg, 20 trials after 200 episodes.
@@ -65,14 +68,12 @@ def read_json(path):
 def load_run(d):
     """A run dir as {'dir', 'cfg' (config dict), 'm' ({metrics column: array}), 'eval' (eval.json or None)}."""
     try:
-        cfg = asdict(tacrl.read_config(d))
-        with open(os.path.join(d, "metrics.csv")) as f:
-            rows = list(csv.DictReader(f))
+        cfg = asdict(legacy.read_config(d))
         ev = read_json(os.path.join(d, "eval.json")) if os.path.exists(os.path.join(d, "eval.json")) else None
-        m = {k: np.array([float(r[k]) for r in rows]) for k in ("episode", "return", "success", "sr15", "e_r_mm",
-                                                                 "ex_r_mm", "elapsed_s")}
+        metrics = rundir.read_metrics(d)
+        m = {k: np.array(metrics[k]) for k in ("episode", "return", "success", "sr15", "e_r_mm", "ex_r_mm", "elapsed_s")}
     except (OSError, ValueError, KeyError, TypeError) as e:
-        raise ArgError(f"{d}: a damaged run directory ({cli.describe(e)})")
+        raise ArgError(f"{d}: a damaged run directory ({tacrl.describe(e)})")
     return {"dir": d, "cfg": cfg, "m": m, "eval": ev}
 
 
@@ -132,7 +133,7 @@ def eval_cached(run, context, levels=LEVELS, episodes=20, log=print):
     """Table-2 rows of a run's policy in `context`, evaluated once and kept in the run dir (the
     training context's come from eval.json when it holds the same levels)."""
     cfg = run["cfg"]
-    act = tacrl.load_policy(os.path.join(run["dir"], "policy.pt"), cfg["task"])
+    act = legacy.load_policy(os.path.join(run["dir"], "policy.pt"), cfg["task"])
     plan = [(mm, round(sim.exploration_range(mm / 1000, act.meta["ex_r"]) * 1000, 3)) for mm in levels]   # (E_r, Ex_r), mm
     tag = "" if tuple(levels) == LEVELS else "-" + "-".join(f"{mm:g}" for mm in levels) + "mm"
     path = os.path.join(run["dir"], f"eval-{context}{tag}.json")
@@ -141,8 +142,8 @@ def eval_cached(run, context, levels=LEVELS, episodes=20, log=print):
         if [(r["error_mm"], r.get("ex_r_mm")) for r in rows] == plan and rows[0]["episodes"] == episodes:
             return rows
     log(f"  evaluating {run['dir']} in {context} at {', '.join(f'{mm:g}' for mm in levels)} mm")
-    with tacrl.eval_env(cfg["task"], act, context, cfg["roi"], cfg["clearance_mm"]) as env:
-        rows = tacrl.evaluate_levels(env, act, levels, episodes, tacrl.EVAL_SEED + cfg["seed"])
+    with evaluate.eval_env(cfg["task"], act, context, cfg["roi"], cfg["clearance_mm"]) as env:
+        rows = evaluate.evaluate_levels(env, act, levels, episodes, evaluate.EVAL_SEED + cfg["seed"])
     with open(path, "w") as f:
         json.dump(rows, f, indent=2)
     return rows
@@ -158,7 +159,7 @@ def record_episode(run, error_mm=10.0, seed=0):
     the image features, X - X_g, the wrench, the action and the phase (0 free motion, 1 search after
     contact, 2 insertion). Returns (record, success)."""
     cfg = run["cfg"]
-    act = tacrl.load_policy(os.path.join(run["dir"], "policy.pt"), cfg["task"])
+    act = legacy.load_policy(os.path.join(run["dir"], "policy.pt"), cfg["task"])
     rec = {k: [] for k in ("image_features", "goal_offset", "f_world", "action", "phase")}
 
     def policy_step(obs):                       # the policy, recording its image features and actions
@@ -173,8 +174,8 @@ def record_episode(run, error_mm=10.0, seed=0):
         rec["goal_offset"].append(info["goal_offset"])
         rec["f_world"].append(info["f_world"])
         rec["phase"].append(2 if info["depth"] > 0.001 else 1 if np.abs(info["f_world"][:3]).max() > 0.5 else 0)
-    with tacrl.eval_env(cfg["task"], act, roi=cfg["roi"], e_r_mm=error_mm) as env:
-        term, _, _ = sim.run_episode(env, policy_step, seed=tacrl.EVAL_SEED * 7 + seed, on_step=on_step)
+    with evaluate.eval_env(cfg["task"], act, roi=cfg["roi"], e_r_mm=error_mm) as env:
+        term, _, _ = sim.run_episode(env, policy_step, seed=evaluate.EVAL_SEED * 7 + seed, on_step=on_step)
     rec["phase"] = np.maximum.accumulate(rec["phase"])        # free -> search after contact -> insertion
     return rec, bool(term)
 
@@ -203,7 +204,7 @@ def same_run(d, to):
     cfgs, rows = [], []
     try:
         for x in (d, to):
-            cfgs.append({k: v for k, v in asdict(tacrl.read_config(x)).items()   # (flags added since: defaults)
+            cfgs.append({k: v for k, v in asdict(legacy.read_config(x)).items()   # (flags added since: defaults)
                          if k not in (*tacrl.RESUME_MAY_SET, "run_dir")})        # (a run dir may move)
             with open(os.path.join(x, "metrics.csv")) as f:
                 rows.append(list(csv.DictReader(f)))
@@ -221,7 +222,7 @@ def archive_runs(patterns, dest=RESULTS_DIR, log=print):
     evaluations), a run extended since replaces its earlier state (what the run dir no longer holds goes:
     it set its old policy's files aside as *-epN.*); a different run under the same name is refused,
     before anything is copied. Returns the archived directories."""
-    cli.check_dir_writable(dest, "--to")
+    tacrl.check_dir_writable(dest, "--to")
     plan = []
     for d in match_runs(patterns):
         if not os.path.exists(os.path.join(d, "eval.json")):
@@ -234,7 +235,7 @@ def archive_runs(patterns, dest=RESULTS_DIR, log=print):
         plan.append((d, to, state))
     if not plan:
         raise ArgError(f"{patterns!r}: no finished run (with eval.json) to archive")
-    kept = lambda names: [f for f in names if f in ARCHIVED or cli.is_evaluation(f)]  # noqa: E731
+    kept = lambda names: [f for f in names if f in ARCHIVED or rundir.is_evaluation(f)]  # noqa: E731
     for d, to, state in plan:
         os.makedirs(to, exist_ok=True)
         names = kept(os.listdir(d))
@@ -248,13 +249,13 @@ def archive_runs(patterns, dest=RESULTS_DIR, log=print):
 
 def write_report(patterns, out_dir="docs", log=print):
     """docs/RESULTS.md and its figures from run directories (glob patterns, comma-separated)."""
-    cli.check_dir_writable(out_dir, "--out")
+    tacrl.check_dir_writable(out_dir, "--out")
     runs = [load_run(d) for d in match_runs(patterns)]
     os.makedirs(out_dir, exist_ok=True)
     for f in os.listdir(out_dir):          # an earlier report's figures, which these runs may not redraw
         if f.startswith("fig-") and f.endswith(".png"):
             os.remove(os.path.join(out_dir, f))
-    md = ["# Results", "", f"Regenerated by `python report.py \"{patterns}\"` from {len(runs)} run "
+    md = ["# Results", "", f"Regenerated by `python tools/report.py \"{patterns}\"` from {len(runs)} run "
           "directories. Every number below was measured by running this code on a 2-core CPU machine; "
           "the paper's numbers stand beside ours. How the world and the method came to be as they are, "
           "and what each change did to the results, is told in [HISTORY.md](HISTORY.md).", "", "## The runs", "",
@@ -278,7 +279,7 @@ def write_report(patterns, out_dir="docs", log=print):
     else:
         log("evaluating the two-step baseline (peg, 20 mm, 20 episodes)")
         with sim.AssemblyEnv("peg", e_r=0.02) as env:
-            ts_row = tacrl.evaluate(env, baselines.make("two-step", env), 20, tacrl.EVAL_SEED, log=lambda *_: None)
+            ts_row = evaluate.evaluate(env, baselines.make("two-step", env), 20, evaluate.EVAL_SEED, log=lambda *_: None)
         with open(path, "w") as f:
             json.dump(ts_row, f, indent=2)
     table1 = [("two-step", [ts_row], "-")]
@@ -448,17 +449,17 @@ def context_rows(job):
     if {k: v for k, v in cached.items() if k != "rows"} == key:
         return cached["rows"]
     run = load_run(d)
-    cfg, act = run["cfg"], tacrl.load_policy(os.path.join(d, "policy.pt"), run["cfg"]["task"])
-    with tacrl.eval_env(cfg["task"], act, ctx, cfg["roi"], cfg["clearance_mm"]) as env:
-        rows = tacrl.evaluate_levels(env, act, levels, episodes, tacrl.EVAL_SEED + cfg["seed"])
+    cfg, act = run["cfg"], legacy.load_policy(os.path.join(d, "policy.pt"), run["cfg"]["task"])
+    with evaluate.eval_env(cfg["task"], act, ctx, cfg["roi"], cfg["clearance_mm"]) as env:
+        rows = evaluate.evaluate_levels(env, act, levels, episodes, evaluate.EVAL_SEED + cfg["seed"])
     with open(path, "w") as f:
         json.dump({**key, "rows": rows}, f, indent=2)
     return rows
 
 
 def training_of(run):
-    """'seed S: N episodes', and where a run trained on since (cli.set_aside) had first finished."""
-    stops = cli.set_aside_at(run["dir"])
+    """'seed S: N episodes', and where a run trained on since (rundir.set_aside) had first finished."""
+    stops = rundir.set_aside_at(run["dir"])
     return (f"seed {run['cfg']['seed']}: {run['eval']['train_episodes']} episodes"
             + (f" (first finished at {stops[0]}, then trained on)" if stops else ""))
 
@@ -467,7 +468,7 @@ def write_contexts(patterns, out_dir, levels=LEVELS, episodes=20, jobs=1, log=pr
     """Train in one context, test in all: every run of ours (task attention) and of its full-view twin made in
     this world, evaluated in every context of sim.CONTEXTS at `levels` (mm), `episodes` trials each; writes
     out_dir/CONTEXTS.md with the table, the goal's check, Fig. 12 and each context's full and task views."""
-    cli.check_dir_writable(out_dir, "--out")
+    tacrl.check_dir_writable(out_dir, "--out")
     runs = [load_run(d) for d in match_runs(patterns)]
     os.makedirs(out_dir, exist_ok=True)
     setting = lambda cfg: method_of({**cfg, "roi": "task", "error_mm": 20.0})   # noqa: E731  'ours' + any other settings
@@ -493,7 +494,7 @@ def write_contexts(patterns, out_dir, levels=LEVELS, episodes=20, jobs=1, log=pr
         if ctx == "train":
             trained.setdefault((r["cfg"]["task"], view), []).append(training_of(r))
     md = ["# Context generalization: trained in `train`, tested in every context", "",
-          f"Made by `python report.py --contexts \"{patterns}\"`. Every context is defined in `sim.CONTEXTS` "
+          f"Made by `python tools/report.py --contexts \"{patterns}\"`. Every context is defined in `sim.CONTEXTS` "
           f"(world {sim.WORLD}); the figures below show what each looks like. Each cell: success rate, mean over "
           f"seeds (min-max), {episodes} trials per seed at each error range on held-out evaluation seeds; CR: the mean "
           "cumulative reward over the ranges. Goal (task attention): SR >= 0.9 at 15 mm and within 0.1 of training's "
@@ -541,7 +542,7 @@ def write_contexts(patterns, out_dir, levels=LEVELS, episodes=20, jobs=1, log=pr
 
 
 def main(argv=None):
-    ap = cli.Parser(description=__doc__.split("\n\n")[0])
+    ap = tacrl.Parser(description=__doc__.split("\n\n")[0])
     ap.add_argument("runs", help="comma-separated glob patterns of run directories, e.g. 'results/*'")
     ap.add_argument("--archive", action="store_true", help="copy the finished runs' small files to --to instead")
     ap.add_argument("--to", default=RESULTS_DIR, help=f"where --archive copies to (default: {RESULTS_DIR})")
@@ -561,4 +562,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    sys.exit(cli.command("report", main))
+    sys.exit(tacrl.command("report", main))

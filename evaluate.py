@@ -1,0 +1,113 @@
+"""evaluate.py: the paper's evaluation (Sec. 5.1.3, Tables 1-2) of a trained policy, of the hand-designed
+policy alone or of a baseline, on held-out seeds; and a video of an episode that a browser plays.
+
+    row = evaluate(env, act, episodes=20, seed=EVAL_SEED)   # act(obs) -> action in [-1, 1]^6
+    rows = evaluate_levels(env, pi, (5, 10, 15, 20), 20, EVAL_SEED)   # Table 2: each error range E_r, mm
+
+A row holds the success rate (SR), the completion time of the successful episodes (CT, s), the peak
+contact force per world axis in each episode (CF, N) and the cumulative reward (CR), each as
+[mean, std] over the episodes. tacrl.py's --eval, the report and the benches evaluate through here.
+"""
+import os
+import time
+
+import cv2
+import numpy as np
+
+import policy
+import scene
+import sim
+
+EVAL_SEED = 1000             # evaluation episodes use seeds from EVAL_SEED + the run's seed: never a training seed
+POLICY_META = ("task", "roi", "vanilla", "ex_r", "e_r_max")     # what training tells evaluation (tacrl.finish)
+
+
+def load_policy(path, device="cpu"):
+    """policy.pt -> policy.TrainedPolicy; ValueError saying what is wrong with a file that is not one."""
+    try:
+        pi = policy.TrainedPolicy(policy.load_file(path, device), device)
+    except Exception as e:          # corrupt, truncated, foreign: one phrase for the caller's line
+        lines = str(e).strip().splitlines()
+        raise ValueError(f"cannot load the policy ({type(e).__name__}{': ' + lines[0][:120] if lines else ''})")
+    missing = set(POLICY_META) - set(pi.meta)
+    if missing:
+        raise ValueError(f"cannot load the policy (its meta lacks {', '.join(sorted(missing))})")
+    return pi
+
+
+def eval_env(task, act, context="train", roi="task", clearance_mm=0.1, e_r_mm=0.0, gui=False):
+    """The env to evaluate `act` in; a TrainedPolicy's at the Ex_r, ROI and X_i it was trained for, with its guidance."""
+    m = act.meta if isinstance(act, policy.TrainedPolicy) else {}
+    return sim.AssemblyEnv(task, context, e_r=e_r_mm / 1000, ex_r=m.get("ex_r"), roi=roi, clearance=clearance_mm / 1000,
+                           gui=gui, trajectory=not m.get("vanilla", False), e_r_max=m.get("e_r_max"))
+
+
+def evaluate(env, act, episodes, seed, video=None, log=print):
+    """Roll out act(obs) -> action for `episodes` episodes (episode k's seed: seed * 100003 + k); returns the
+    Table-1/2 row: success rate, completion time of the successful episodes (s), peak |contact force|
+    per world axis in each episode (N) and cumulative reward, each as [mean, std]. video: an open_video
+    writer that gets the first episode, a frame a policy step."""
+    succ, times, forces, returns = [], [], [], []
+    t0 = time.time()
+    for ep in range(episodes):
+        peak = np.zeros(3)
+
+        def on_step(obs, r, info, first=ep == 0):
+            np.maximum(peak, np.abs(info["f_world"][:3]), out=peak)
+            if video is not None and first:
+                video.write(env.world.render_external()[:, :, ::-1])     # RGB -> OpenCV's BGR
+        term, info, ret = sim.run_episode(env, act, seed=seed * 100003 + ep, on_step=on_step)
+        succ.append(term)
+        returns.append(ret)
+        forces.append(peak)
+        if term:
+            times.append(info["t"])
+        el = time.time() - t0
+        log(f"episode {ep + 1}/{episodes}  success {int(term)}  time {info['t']:5.1f}s  return {ret:7.1f}  |F|max x/y/z "
+            f"{peak[0]:5.1f}/{peak[1]:5.1f}/{peak[2]:5.1f} N  elapsed {el:5.0f}s  ETA {el / (ep + 1) * (episodes - ep - 1):4.0f}s")
+    forces = np.array(forces)
+    mean_std = lambda x: [float(np.mean(x)), float(np.std(x))] if len(x) else None   # noqa: E731 (None: no success)
+    return {"success_rate": float(np.mean(succ)), "completion_time_s": mean_std(times),
+            "contact_force_x_N": mean_std(forces[:, 0]), "contact_force_y_N": mean_std(forces[:, 1]),
+            "contact_force_z_N": mean_std(forces[:, 2]), "cumulative_reward": mean_std(returns),
+            "episodes": episodes}
+
+
+def evaluate_levels(env, act, levels, episodes, seed, log=lambda row: None):
+    """Table-2 rows: `evaluate` at each error range E_r in `levels` (mm), with Ex_r held where the
+    policy's training ended (the controller stays as trained)."""
+    rows = []
+    for mm in levels:
+        env.set_ranges(mm / 1000, act.meta["ex_r"])
+        row = evaluate(env, act, episodes, seed, log=lambda *_: None)
+        row.update(error_mm=mm, ex_r_mm=round(env.ex_r * 1000, 3))
+        rows.append(row)
+        log(row)
+    return rows
+
+
+def format_row(name, row):
+    ms = lambda k, f="{:.2f}": "-" if row[k] is None else f"{f.format(row[k][0])} +- {f.format(row[k][1])}"  # noqa: E731
+    return (f"{'policy':<22} {'SR':>5}  {'CT (s)':>14}  {'Fx (N)':>14}  {'Fy (N)':>14}  {'Fz (N)':>14}  {'CR':>16}\n"
+            f"{name:<22} {row['success_rate']:5.2f}  {ms('completion_time_s'):>14}  {ms('contact_force_x_N'):>14}  "
+            f"{ms('contact_force_y_N'):>14}  {ms('contact_force_z_N'):>14}  {ms('cumulative_reward', '{:.1f}'):>16}")
+
+
+# ---------------------------------------------------------------- a video a browser plays
+VIDEO_CODECS = {".webm": ("VP90", "VP9"), ".mp4": ("avc1", "H.264")}   # what browsers play (MDN's web video codec guide)
+
+
+def open_video(path, size, fps=sim.POLICY_HZ):
+    """A cv2.VideoWriter of (w, h) BGR frames, its codec chosen by the extension (.webm: VP9, .mp4: H.264);
+    ValueError where this OpenCV cannot write that format (OpenCV's pip wheels encode VP9 with libvpx but
+    carry no H.264 encoder). Release it inside scene.quiet_c_output(): FFmpeg prints as it closes."""
+    ext = os.path.splitext(path)[1].lower()
+    if ext not in VIDEO_CODECS:
+        raise ValueError("a video is a .webm (VP9) or .mp4 (H.264) file")
+    fourcc, codec = VIDEO_CODECS[ext]
+    with scene.quiet_c_output():                   # FFmpeg's notices (a codec tag it does not know for WebM)
+        writer = cv2.VideoWriter(path, cv2.VideoWriter_fourcc(*fourcc), fps, size)
+    if not writer.isOpened():
+        hint = "; name a .webm file instead (VP9, which every current browser plays)" if ext == ".mp4" else ""
+        raise ValueError(f"this OpenCV ({cv2.__version__}) has no {codec} encoder{hint}")
+    return writer
