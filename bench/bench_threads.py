@@ -1,5 +1,5 @@
 """SAC updates/s of the default training configuration for torch thread counts and OpenMP wait policies,
-alone and beside one other busy process: what tacrl.py's default (tacrl.THREAD_DEFAULTS) is chosen from.
+alone and beside one other busy process: what tacrl.py's default (cli.CoreShare) is chosen from.
 
     python bench/bench_threads.py [--updates 80] [--repeats 3]
 
