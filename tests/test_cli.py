@@ -26,22 +26,25 @@ def test_bad_arguments_exit_2_with_one_line(args, capsys):
     assert err.strip().count("\n") == 0 and err.startswith("tacrl: error:")
 
 
-def test_the_readmes_command_through_the_shell_in_a_tiny_configuration(tmp_path):
-    # `python tacrl.py --task peg` as the quickstart runs it, with a budget of seconds: the default run dir,
-    # a progress line an episode with its ETA, the finished run's files; then a mistake: one line, exit 2
-    tiny = ["--train-episodes", "2", "--warmup", "1", "--updates", "2", "--batch", "8", "--buffer", "240",
+def test_the_readmes_command_through_the_shell_in_a_tiny_configuration_without_the_extras(tmp_path):
+    # `python tacrl.py --task peg` as the quickstart runs it, with a budget of seconds, where neither gymnasium
+    # nor tensorboard can be imported (the optional extras): the default run dir, a progress line an episode
+    # with its ETA, the finished run's files
+    (tmp_path / "hidden").mkdir()
+    for extra in ("gymnasium", "tensorboard"):
+        (tmp_path / "hidden" / f"{extra}.py").write_text(f"raise ImportError('{extra} is not installed')\n")
+    tiny = ["--train-episodes", "1", "--warmup", "0", "--updates", "2", "--batch", "8", "--buffer", "240",
             "--episodes", "1", "--eval-levels", "0"]
     shell = lambda *argv: subprocess.run([sys.executable, os.path.join(ROOT, "tacrl.py"), *argv], capture_output=True,  # noqa: E731
-                                         text=True, cwd=tmp_path, timeout=300)
+                                         text=True, cwd=tmp_path, timeout=300,
+                                         env={**os.environ, "PYTHONPATH": str(tmp_path / "hidden")})
     r = shell("--task", "peg", *tiny)
     assert r.returncode == 0 and r.stderr == "", r.stderr
-    assert len([x for x in r.stdout.splitlines() if x.startswith("ep ") and " ETA " in x]) == 2
+    assert len([x for x in r.stdout.splitlines() if x.startswith("ep ") and " ETA " in x]) == 1
     run = tmp_path / "runs" / "peg-ts-ptv-adaptive-s0"
     assert sorted(os.listdir(run)) == ["ckpt.pt", "config.json", "curves.png", "eval.json", "metrics.csv", "policy.pt",
                                        "replay"]
-    assert json.loads((run / "eval.json").read_text())["train_episodes"] == 2
-    r = shell("--task", "screw")
-    assert r.returncode == 2 and r.stderr.count("\n") == 1 and r.stderr.startswith("tacrl: error:")
+    assert json.loads((run / "eval.json").read_text())["train_episodes"] == 1
 
 
 def test_each_flag_is_described_once_in_help(capsys):
@@ -81,24 +84,6 @@ def test_a_video_format_this_opencv_cannot_write_is_one_line_before_any_work(tmp
     err = capsys.readouterr().err
     assert (ok == 0 and (tmp_path / "ep.mp4").stat().st_size > 0) or \
         (ok == 2 and err.count("\n") == 1 and "no H.264 encoder; name a .webm" in err and not os.listdir(tmp_path))
-
-
-def test_corrupt_checkpoint_is_a_one_line_error(tmp_path, capsys):
-    run_dir = tmp_path / "run"
-    run_dir.mkdir()
-    (run_dir / "config.json").write_text(json.dumps({"task": "peg"}))
-    (run_dir / "ckpt.pt").write_bytes(b"not a checkpoint")
-    assert tacrl.main(["--resume", str(run_dir)]) == 2
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "ckpt.pt is damaged" in err
-
-
-def test_corrupt_policy_is_a_one_line_error(tmp_path, capsys):
-    bad = tmp_path / "policy.pt"
-    bad.write_bytes(b"\x80\x02garbage")
-    assert tacrl.main(["--eval", str(bad)]) == 2
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "cannot load" in err
 
 
 def test_core_share_leaves_a_core_to_another_busy_process(monkeypatch):

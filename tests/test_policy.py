@@ -1,13 +1,18 @@
 """policy.py without pybullet: shapes of the TA-MRP networks, the squashed Gaussian's log-density,
-the TD target's time-out handling, the replay buffer and its files, checkpoints, what the actor may
-read, and SAC solving a toy task."""
+the TD target's time-out handling, the replay buffer, checkpoints, what the actor may read, SAC
+solving a toy task, and that it lifts out with numpy and torch alone."""
+import ast
 import io
+import os
+import sys
 
 import numpy as np
 import pytest
 import torch
 
 import policy
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
 def fake_obs(rng, n=None, kinds=("image", "pose_hist", "wrench_hist")):
@@ -173,3 +178,23 @@ def test_the_actor_never_reads_what_only_the_critics_may():
     batch = lambda x: {k: torch.as_tensor(v[None]) for k, v in x.items()}   # noqa: E731
     a = torch.zeros(1, 6)
     assert not torch.allclose(sac.q(sac.enc(batch(o)), a)[0], sac.q(sac.enc(batch(o2)), a)[0])
+
+
+def module_imports(name):
+    """The modules a file of the project imports when it is imported (its top-level import statements)."""
+    tree = ast.parse(open(os.path.join(ROOT, f"{name}.py")).read())
+    out = set()
+    for node in tree.body:
+        if isinstance(node, ast.Import):
+            out |= {a.name.split(".")[0] for a in node.names}
+        elif isinstance(node, ast.ImportFrom):
+            out.add(node.module.split(".")[0])
+    return out
+
+
+def test_the_liftable_modules_need_only_numpy_and_torch_and_the_core_no_plotting():
+    for name in ("control", "curriculum", "policy"):
+        assert module_imports(name) - set(sys.stdlib_module_names) <= {"numpy", "torch"}, name
+    core = ("tacrl", "sim", "scene", "evaluate", "rundir", "baselines", "control", "curriculum", "policy")
+    for name in core:           # matplotlib only inside rundir.plot_curves; tools/ is never imported
+        assert not module_imports(name) & {"matplotlib", "report", "figures", "seeds", "legacy", "tensorboard"}, name
