@@ -112,6 +112,9 @@ def parse_seeds(text):
 
 def main(argv=None):
     argv = sys.argv[1:] if argv is None else list(argv)
+    if argv and argv[0] in ("-h", "--help"):         # this page, then tacrl.py's flags
+        print(__doc__.strip() + "\n")
+        tacrl.parse_args(["--help"])
     if not argv or argv[0].startswith("-"):
         raise ArgError("usage: python tools/seeds.py SEEDS [tacrl.py flags], e.g. python tools/seeds.py 0,1,2 --task peg")
     train_seeds(parse_seeds(argv[0]), argv[1:])
