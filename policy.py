@@ -91,11 +91,11 @@ class Encoder(nn.Module):
     """obs dict -> fused feature (B, out_dim). pose_scale, wrench_scale (6,): divide the raw SI
     readings by these so that the inputs are of order 1 (the env's error range and F_max)."""
 
-    def __init__(self, kind="ts-ptv", pose_scale=np.ones(6), wrench_scale=np.ones(6), img=80):
+    def __init__(self, kind="ts-ptv", pose_scale=np.ones(6), wrench_scale=np.ones(6), img=80, norm="joint"):
         super().__init__()
         if kind not in OBS_KINDS:
             raise ValueError(f"unknown observation kind {kind!r} ({', '.join(OBS_KINDS)})")
-        self.kind = kind
+        self.kind, self.norm_kind = kind, norm
         self.register_buffer("pose_scale", torch.as_tensor(np.asarray(pose_scale), dtype=torch.float32))
         self.register_buffer("wrench_scale", torch.as_tensor(np.asarray(wrench_scale), dtype=torch.float32))
         if kind == "pt":
@@ -104,7 +104,11 @@ class Encoder(nn.Module):
             self.series = SeriesEncoder()
         self.image = ImageEncoder(img) if kind in ("ts-ptv", "v") else None
         self.out_dim = {"ts-ptv": 3 * FEAT, "v": FEAT}.get(kind, 2 * FEAT)
-        self.norm = nn.LayerNorm(self.out_dim)
+        # norm 'joint': one LayerNorm over the fused vector; 'modality': one per modality's features before
+        # they are joined (SERL and SAC-AE end each modality's encoder in LayerNorm + tanh), so that the CNN's
+        # 6 and the LSTM's 12 features enter at the same scale
+        self.norm = nn.LayerNorm(self.out_dim) if norm == "joint" else nn.ModuleList(
+            [nn.LayerNorm(n) for n in ([2 * FEAT] if kind != "v" else []) + ([FEAT] if self.image is not None else [])])
 
     def forward(self, obs):
         z = []
@@ -117,6 +121,8 @@ class Encoder(nn.Module):
             z = [self.series(torch.cat([pose, wrench], 2))]     # (B, 12): pose and touch features
         if self.image is not None:
             z.append(self.image(obs["image"]))
+        if self.norm_kind != "joint":
+            return torch.tanh(torch.cat([ln(x) for ln, x in zip(self.norm, z)], 1))
         return torch.tanh(self.norm(torch.cat(z, 1)))       # the fusion vector, (B, 18) for ts-ptv
 
 
@@ -209,13 +215,27 @@ class ReplayBuffer:
         self.i = (self.i + T) % self.capacity
         self.n = min(self.n + T, self.capacity)
 
-    def sample(self, batch, rng, jitter_s=0.0):
-        """A batch of transitions (o, a, r, o', terminated); with jitter_s, their images jittered (--augment)."""
+    def sample(self, batch, rng, jitter_s=0.0, shift=0):
+        """A batch of transitions (o, a, r, o', terminated); with jitter_s, their images jittered (--augment);
+        with shift, randomly shifted by up to that many pixels (--shift)."""
         idx = rng.integers(0, self.n, batch)
         o, o2 = ({k: v[idx] for k, v in d.items()} for d in (self.obs, self.next_obs))
         if jitter_s and "image" in o:           # o and o' jittered independently, as DrQ does
             o["image"], o2["image"] = jitter(o["image"], rng, jitter_s), jitter(o2["image"], rng, jitter_s)
+        if shift and "image" in o:
+            o["image"], o2["image"] = random_shift(o["image"], rng, shift), random_shift(o2["image"], rng, shift)
         return o, self.act[idx], self.rew[idx], o2, self.term[idx]
+
+
+def random_shift(images, rng, pad):
+    """DrQ's augmentation (Kostrikov et al. 2020): each gray image (B, H, W) uint8 padded by `pad` pixels,
+    repeating its edge, and cropped back to (H, W) at a random offset: shifted by up to +-pad pixels."""
+    B, H, W = images.shape
+    padded = np.pad(images, ((0, 0), (pad, pad), (pad, pad)), mode="edge")
+    dy, dx = rng.integers(0, 2 * pad + 1, (2, B))
+    rows = (dy[:, None] + np.arange(H))[:, :, None]                 # (B, H, 1)
+    cols = (dx[:, None] + np.arange(W))[:, None, :]                 # (B, 1, W)
+    return padded[np.arange(B)[:, None, None], rows, cols]
 
 
 def jitter(images, rng, s):
@@ -250,12 +270,14 @@ class SAC:
     """
 
     def __init__(self, obs_kind="ts-ptv", pose_scale=np.ones(6), wrench_scale=np.ones(6), act_dim=6,
-                 lr=3e-4, gamma=0.95, tau=0.005, init_alpha=0.1, target_entropy=None, state_dim=0, device="cpu"):
+                 lr=3e-4, gamma=0.95, tau=0.005, init_alpha=0.1, target_entropy=None, state_dim=0, device="cpu",
+                 extra_dim=0, target_encoder=True, norm="joint"):
         self.device, self.gamma, self.tau = torch.device(device), gamma, tau
         self.shared = not state_dim                  # the paper's critics lend the actor their encoder
-        enc = lambda: Encoder(obs_kind, pose_scale, wrench_scale).to(self.device)  # noqa: E731
+        self.extra_dim, self.target_encoder = extra_dim, target_encoder
+        enc = lambda: Encoder(obs_kind, pose_scale, wrench_scale, norm=norm).to(self.device)  # noqa: E731
         self.enc = enc() if self.shared else StateEncoder(state_dim, pose_scale, wrench_scale).to(self.device)
-        self.q = TwinQ(self.enc.out_dim, act_dim).to(self.device)
+        self.q = TwinQ(self.enc.out_dim + extra_dim, act_dim).to(self.device)
         self.enc_targ, self.q_targ = copy.deepcopy(self.enc), copy.deepcopy(self.q)
         for p in list(self.enc_targ.parameters()) + list(self.q_targ.parameters()):
             p.requires_grad_(False)
@@ -291,12 +313,14 @@ class SAC:
         alpha = self.log_alpha.exp().detach()
         # critics: regress Q(o, a) on the TD target y (td_target)
         with torch.no_grad():
-            z2 = self.enc_targ(o2)                   # (B, n_feat): o' encoded once, by the target encoder
+            # (B, n_feat): o' encoded once, by the target encoder, or (target_encoder False) by the online one
+            # without gradient, as DrQ-v2 does (Yarats et al. 2021), so that a' follows the actor's encoder of now
+            z2 = (self.enc_targ if self.target_encoder else self.enc)(o2)
             a2, logp2 = self.actor(z2 if self.shared else self.actor_enc(o2))
-            q1_t, q2_t = self.q_targ(z2, a2)
+            q1_t, q2_t = self.q_targ(self.critic_input(z2, o2), a2)
             y = td_target(r, term, torch.min(q1_t, q2_t), logp2, alpha, self.gamma)
         z = self.enc(o)
-        q1, q2 = self.q(z, a)
+        q1, q2 = self.q(self.critic_input(z, o), a)
         q_loss = F.mse_loss(q1, y) + F.mse_loss(q2, y)
         self.q_opt.zero_grad(set_to_none=True)
         q_loss.backward()
@@ -307,7 +331,7 @@ class SAC:
         a_pi, logp = self.actor(z_pi)
         for p in self.q.parameters():
             p.requires_grad_(False)
-        q1_pi, q2_pi = self.q(z.detach(), a_pi)
+        q1_pi, q2_pi = self.q(self.critic_input(z.detach(), o), a_pi)
         for p in self.q.parameters():
             p.requires_grad_(True)
         pi_loss = (alpha * logp - torch.min(q1_pi, q2_pi)).mean()
@@ -326,6 +350,11 @@ class SAC:
                 p_targ.lerp_(p, self.tau)
         return {"q_loss": q_loss.item(), "pi_loss": pi_loss.item(), "alpha": alpha.item(),
                 "entropy": -logp.mean().item()}
+
+    def critic_input(self, z, o):
+        """What the twin Q heads read: the critics' features, and with extra_dim obs['extra'] (B, extra_dim), a
+        vector the actor does not read (tacrl: the time and the curriculum's ranges, which the agent knows)."""
+        return torch.cat([z, o["extra"]], 1) if self.extra_dim else z
 
     # -- checkpoints -------------------------------------------------------------------
     def modules(self):

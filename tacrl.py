@@ -75,6 +75,13 @@ class Config:
     vanilla: bool = train_opt(False, "the vanilla baseline: no trajectory guidance, the residual acts alone")
     critic: str = train_opt("privileged", "privileged: also X - X_g (README difference 13)", ("privileged", "multimodal"))
     augment: float = train_opt(0.0, "image jitter s: brightness, contrast x U(1-s, 1+s) (README difference 17)", bounds=(0, 1))
+    shift: int = train_opt(0, "random image shift in the updates, up to this many pixels (DrQ; 0: none)", bounds=(0, 16))
+    critic_extra: bool = train_opt(False, "the paper's critics also read the time and the curriculum's E_r and Ex_r "
+                                          "(known to the agent; --critic multimodal)")
+    next_encoder: str = train_opt("target", "which encoder reads o' in the TD target: target (Polyak) or online (DrQ-v2)",
+                                  ("target", "online"))
+    fusion_norm: str = train_opt("joint", "LayerNorm over the 18-d fusion vector (joint) or over each modality's "
+                                          "features (modality)", ("joint", "modality"))
     updates: int = train_opt(200, "SAC gradient steps after each episode (Sec. 5.1.1: 200)", bounds=(0, None))
     warmup: int = train_opt(20, "random-action episodes before the first update (the authors' loop: 20)", bounds=(0, None))
     batch: int = train_opt(64, "SAC batch size", bounds=(1, None))
@@ -100,6 +107,7 @@ class Config:
 
 POSE_SCALE = np.array([sim.E_R_FINAL] * 3 + [sim.E_ROT_FINAL] * 3)   # m, rad: the encoders' pose units
 STATE_DIM = 7                                                        # what privileged critics read (critic_state)
+EXTRA_DIM = 3                                                        # what --critic-extra adds (critic_extra)
 RESUME_MAY_SET = ("resume", "train_episodes", "stop_held", "threads", "track")   # to extend a run; nothing else changes
 VAL_SEED, VAL_EPISODES, VAL_WINS, VAL_EVERY, VAL_PASSES = 2000, 20, 19, 10, 2   # stop when learned: 19 of 20 twice
 
@@ -136,7 +144,8 @@ def train(cfg, log=lambda msg: print(msg, flush=True)):
             run.lap("env")
             # line 10, update the policy with SAC
             n = cfg.updates if ep >= cfg.warmup else 0
-            losses = [sac.update(buf.sample(cfg.batch, rng, cfg.augment)) for _ in cores.steps(n, torch.set_num_threads)]
+            losses = [sac.update(buf.sample(cfg.batch, rng, cfg.augment, cfg.shift))
+                      for _ in cores.steps(n, torch.set_num_threads)]
             run.lap("update")
             curr.update(bool(episode["term"][-1]))                      # line 11: generate the curriculum, Eq. 16
             learned = stop.learned(env.e_r >= curr.final - 1e-9, lambda: validate(cfg, sac, curr), log, ep)
@@ -157,12 +166,12 @@ def rollout(env, act):
     observations, each with the privileged critics' 'state' (which the actor never reads), T actions, rewards,
     ends; and its return."""
     obs, info = env.reset()
-    traj = {k: [v] for k, v in {**obs, "state": critic_state(info)}.items()}
+    traj = {k: [v] for k, v in {**obs, "state": critic_state(info), "extra": critic_extra(info)}.items()}
     acts, rews, terms, done = [], [], [], False
     while not done:
         a = act(obs)
         obs, r, term, trunc, info = env.step(a)
-        for k, v in {**obs, "state": critic_state(info)}.items():
+        for k, v in {**obs, "state": critic_state(info), "extra": critic_extra(info)}.items():
             traj[k].append(v)
         acts.append(a)
         rews.append(r)
@@ -187,16 +196,27 @@ def critic_state(info):
                      np.tanh(off[1] / 0.001), t], np.float32)
 
 
+def critic_extra(info):
+    """What --critic-extra adds to the paper's critics, obs['extra'] (EXTRA_DIM,): the time as a fraction of the
+    episode and the curriculum's E_r and Ex_r over the final range, all of which the agent knows (the reward's
+    W and the time left change with them); the actor does not read it."""
+    return np.array([info["t"] * sim.POLICY_HZ / sim.MAX_STEPS, info["e_r"] / sim.E_R_FINAL, info["ex_r"] / sim.E_R_FINAL],
+                    np.float32)
+
+
 def make_sac(cfg, device=None):
     return policy.SAC(cfg.obs, POSE_SCALE, sim.F_MAX6, lr=cfg.lr, gamma=cfg.gamma, target_entropy=cfg.target_entropy,
                       state_dim=STATE_DIM if cfg.critic == "privileged" else 0,
-                      device=device or ("cpu" if cfg.device == "auto" else cfg.device))
+                      device=device or ("cpu" if cfg.device == "auto" else cfg.device),
+                      extra_dim=EXTRA_DIM if cfg.critic_extra else 0, target_encoder=cfg.next_encoder == "target",
+                      norm=cfg.fusion_norm)
 
 
 def obs_shapes(cfg):
     """What the replay buffer keeps of an observation (the critics' 'state' only where they read it)."""
     return {"image": (sim.IMG, sim.IMG), "pose_hist": (sim.HIST, 6), "wrench_hist": (sim.HIST, 6),
-            **({"state": (STATE_DIM,)} if cfg.critic == "privileged" else {})}
+            **({"state": (STATE_DIM,)} if cfg.critic == "privileged" else {}),
+            **({"extra": (EXTRA_DIM,)} if cfg.critic_extra else {})}
 
 
 def zero_batch(buf, batch):
@@ -363,6 +383,8 @@ def check(cfg):
             (cfg.eval and cfg.eval not in baselines.NAMES and not os.path.isfile(cfg.eval),
              f"--eval must be {', '.join(baselines.NAMES)} or an existing policy.pt file, not {cfg.eval!r}"),
             (cfg.eval == "two-step" and cfg.task != "peg", "--eval two-step is the peg-in-hole baseline (Table 1)"),
+            ((cfg.critic_extra or cfg.next_encoder != "target") and cfg.critic != "multimodal",
+             "--critic-extra and --next-encoder change the paper's critics: they need --critic multimodal"),
             (cfg.buffer < max(cfg.batch, sim.MAX_STEPS), f"--buffer {cfg.buffer} must hold an episode ({sim.MAX_STEPS} "
                                                          f"transitions) and a batch (--batch {cfg.batch})"),
             (cfg.video and os.path.splitext(cfg.video)[1].lower() not in evaluate.VIDEO_CODECS,
@@ -404,13 +426,18 @@ def check(cfg):
 
 
 def default_run_dir(cfg):
-    """runs/<task>-[vanilla-]<obs>-<curriculum>[-e<E_r mm>][-roi-<roi>][-<critic>][-aug<s>]-s<seed>: the flags of
-    the baselines and ablations are in its name, so that no run overwrites another's directory."""
+    """runs/<task>-[vanilla-]<obs>-<curriculum>[-e<E_r mm>][-roi-<roi>][-<critic>][-aug<s>][-shift<px>][-extra]
+    [-next-online][-norm-modality]-s<seed>: the flags of the baselines, ablations and options are in its name, so
+    that no run overwrites another's directory."""
     name = f"{cfg.task}-{'vanilla-' if cfg.vanilla else ''}{cfg.obs}-{cfg.curriculum}"
     name += f"-e{cfg.error_mm:g}" if cfg.error_mm != Config.error_mm else ""
     name += f"-roi-{cfg.roi}" if cfg.roi != "task" else ""
     name += f"-{cfg.critic}" if cfg.critic != Config.critic else ""
     name += f"-aug{cfg.augment:g}" if cfg.augment else ""
+    name += f"-shift{cfg.shift}" if cfg.shift else ""
+    name += "-extra" if cfg.critic_extra else ""
+    name += f"-next-{cfg.next_encoder}" if cfg.next_encoder != Config.next_encoder else ""
+    name += f"-norm-{cfg.fusion_norm}" if cfg.fusion_norm != Config.fusion_norm else ""
     return os.path.join("runs", f"{name}-s{cfg.seed}")
 
 

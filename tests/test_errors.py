@@ -115,8 +115,9 @@ MISTAKES = {   # a few of each kind; the files they point at are in `workdir`
     "a file to write that exists or cannot be written": [["--eval", "initial", "--json", "row.json"],
                                                          ["--eval", "initial", "--video", "no/such/ep.webm"],
                                                          ["--eval", "initial", "--json", "/proc/row.json"]],
-    "a flag of the other mode, or a typo": [["--eval", "initial", "--lr", "0.1"], ["--json", "x.json"],
-                                            ["--train-episode", "5"]],
+    "a flag of the other mode, or one that would change nothing": [["--eval", "initial", "--lr", "0.1"],
+                                                                   ["--json", "x.json"], ["--train-episode", "5"],
+                                                                   ["--critic-extra"]],
     "a window without a display": [["--eval", "initial", "--gui"]],
 }
 

@@ -198,3 +198,27 @@ def test_the_liftable_modules_need_only_numpy_and_torch_and_the_core_no_plotting
     core = ("tacrl", "sim", "scene", "evaluate", "rundir", "baselines", "control", "curriculum", "policy")
     for name in core:           # matplotlib only inside rundir.plot_curves; tools/ is never imported
         assert not module_imports(name) & {"matplotlib", "report", "figures", "seeds", "legacy", "tensorboard"}, name
+
+
+def test_random_shift_moves_each_image_by_at_most_pad_pixels_repeating_its_edges():
+    img = np.zeros((200, 20, 20), np.uint8)
+    img[:, 10, 10] = 255                                   # one bright pixel, in the middle
+    out = policy.random_shift(img, np.random.default_rng(0), 3)
+    where = np.array([np.argwhere(x == 255)[0] for x in out])
+    assert out.shape == img.shape and out.dtype == np.uint8
+    assert np.abs(where - 10).max() == 3 and len(np.unique(where[:, 1])) == 7     # every shift in -3..3 drawn
+    edge = np.tile(np.arange(20, dtype=np.uint8), (1, 20, 1))                    # columns 0..19
+    shifted = policy.random_shift(edge, np.random.default_rng(1), 4)[0]
+    assert set(np.diff(shifted[0]).tolist()) <= {0, 1}     # the left or right edge repeated, the rest in order
+
+
+@pytest.mark.parametrize("norm", ["joint", "modality"])
+def test_the_papers_critics_with_extras_and_the_online_next_encoder_update(norm):
+    rng = np.random.default_rng(0)
+    torch.manual_seed(0)
+    sac = policy.SAC("ts-ptv", extra_dim=3, target_encoder=False, norm=norm)
+    o, o2 = ({**fake_obs(rng, 16), "extra": rng.uniform(0, 1, (16, 3)).astype(np.float32)} for _ in range(2))
+    losses = sac.update((o, rng.uniform(-1, 1, (16, 6)).astype(np.float32), rng.normal(size=16).astype(np.float32), o2,
+                         np.zeros(16, np.float32)))
+    assert all(np.isfinite(v) for v in losses.values())
+    assert sac.act(fake_obs(rng)).shape == (6,)            # the actor reads no 'extra'
