@@ -271,12 +271,14 @@ class SAC:
 
     def __init__(self, obs_kind="ts-ptv", pose_scale=np.ones(6), wrench_scale=np.ones(6), act_dim=6,
                  lr=3e-4, gamma=0.95, tau=0.005, init_alpha=0.1, target_entropy=None, state_dim=0, device="cpu",
-                 extra_dim=0, target_encoder=True, norm="joint"):
+                 extra_dim=0, target_encoder=True, norm="joint", own_actor_encoder=False):
         self.device, self.gamma, self.tau = torch.device(device), gamma, tau
-        self.shared = not state_dim                  # the paper's critics lend the actor their encoder
+        # the paper's critics lend the actor their encoder, unless it has one of its own (as it always has with
+        # privileged critics), trained through the actor loss
+        self.shared = not state_dim and not own_actor_encoder
         self.extra_dim, self.target_encoder = extra_dim, target_encoder
         enc = lambda: Encoder(obs_kind, pose_scale, wrench_scale, norm=norm).to(self.device)  # noqa: E731
-        self.enc = enc() if self.shared else StateEncoder(state_dim, pose_scale, wrench_scale).to(self.device)
+        self.enc = StateEncoder(state_dim, pose_scale, wrench_scale).to(self.device) if state_dim else enc()
         self.q = TwinQ(self.enc.out_dim + extra_dim, act_dim).to(self.device)
         self.enc_targ, self.q_targ = copy.deepcopy(self.enc), copy.deepcopy(self.q)
         for p in list(self.enc_targ.parameters()) + list(self.q_targ.parameters()):

@@ -80,6 +80,9 @@ class Config:
                                           "(known to the agent; --critic multimodal)")
     next_encoder: str = train_opt("target", "which encoder reads o' in the TD target: target (Polyak) or online (DrQ-v2)",
                                   ("target", "online"))
+    actor_encoder: str = train_opt("shared", "the paper's critics lend the actor their encoder, gradient stopped (shared, "
+                                             "SAC-AE/DrQ), or it has its own, trained by the actor loss (own)",
+                                   ("shared", "own"))
     fusion_norm: str = train_opt("joint", "LayerNorm over the 18-d fusion vector (joint) or over each modality's "
                                           "features (modality)", ("joint", "modality"))
     updates: int = train_opt(200, "SAC gradient steps after each episode (Sec. 5.1.1: 200)", bounds=(0, None))
@@ -209,7 +212,7 @@ def make_sac(cfg, device=None):
                       state_dim=STATE_DIM if cfg.critic == "privileged" else 0,
                       device=device or ("cpu" if cfg.device == "auto" else cfg.device),
                       extra_dim=EXTRA_DIM if cfg.critic_extra else 0, target_encoder=cfg.next_encoder == "target",
-                      norm=cfg.fusion_norm)
+                      norm=cfg.fusion_norm, own_actor_encoder=cfg.actor_encoder == "own")
 
 
 def obs_shapes(cfg):
@@ -383,8 +386,8 @@ def check(cfg):
             (cfg.eval and cfg.eval not in baselines.NAMES and not os.path.isfile(cfg.eval),
              f"--eval must be {', '.join(baselines.NAMES)} or an existing policy.pt file, not {cfg.eval!r}"),
             (cfg.eval == "two-step" and cfg.task != "peg", "--eval two-step is the peg-in-hole baseline (Table 1)"),
-            ((cfg.critic_extra or cfg.next_encoder != "target") and cfg.critic != "multimodal",
-             "--critic-extra and --next-encoder change the paper's critics: they need --critic multimodal"),
+            (cfg.critic != "multimodal" and (cfg.critic_extra, cfg.next_encoder, cfg.actor_encoder) != (False, "target", "shared"),
+             "--critic-extra, --next-encoder and --actor-encoder change the paper's critics: they need --critic multimodal"),
             (cfg.buffer < max(cfg.batch, sim.MAX_STEPS), f"--buffer {cfg.buffer} must hold an episode ({sim.MAX_STEPS} "
                                                          f"transitions) and a batch (--batch {cfg.batch})"),
             (cfg.video and os.path.splitext(cfg.video)[1].lower() not in evaluate.VIDEO_CODECS,
@@ -427,7 +430,7 @@ def check(cfg):
 
 def default_run_dir(cfg):
     """runs/<task>-[vanilla-]<obs>-<curriculum>[-e<E_r mm>][-roi-<roi>][-<critic>][-aug<s>][-shift<px>][-extra]
-    [-next-online][-norm-modality]-s<seed>: the flags of the baselines, ablations and options are in its name, so
+    [-next-online][-norm-modality][-own-actor-enc]-s<seed>: the flags of the baselines, ablations and options are in its name, so
     that no run overwrites another's directory."""
     name = f"{cfg.task}-{'vanilla-' if cfg.vanilla else ''}{cfg.obs}-{cfg.curriculum}"
     name += f"-e{cfg.error_mm:g}" if cfg.error_mm != Config.error_mm else ""
@@ -438,6 +441,7 @@ def default_run_dir(cfg):
     name += "-extra" if cfg.critic_extra else ""
     name += f"-next-{cfg.next_encoder}" if cfg.next_encoder != Config.next_encoder else ""
     name += f"-norm-{cfg.fusion_norm}" if cfg.fusion_norm != Config.fusion_norm else ""
+    name += "-own-actor-enc" if cfg.actor_encoder == "own" else ""
     return os.path.join("runs", f"{name}-s{cfg.seed}")
 
 
