@@ -190,14 +190,15 @@ class ReplayBuffer:
     o' is stored next to o, which doubles the memory but keeps sampling a plain index. i: the next slot
     to write; n: the transitions held."""
 
-    def __init__(self, capacity, obs_shapes, act_dim=6):
-        self.capacity, self.n, self.i = capacity, 0, 0
+    def __init__(self, capacity, obs_shapes, act_dim=6, nstep=1, gamma=0.95):
+        self.capacity, self.n, self.i, self.nstep, self.gamma = capacity, 0, 0, nstep, gamma
         self.obs = {k: np.zeros((capacity, *s), np.uint8 if k == "image" else np.float32)
                     for k, s in obs_shapes.items()}
         self.next_obs = {k: np.zeros_like(v) for k, v in self.obs.items()}
         self.act = np.zeros((capacity, act_dim), np.float32)
         self.rew = np.zeros(capacity, np.float32)
         self.term = np.zeros(capacity, np.float32)
+        self.disc = np.zeros(capacity, np.float32)      # the bootstrap's discount: gamma^(steps the return spans)
 
     def __len__(self):
         return self.n
@@ -208,10 +209,17 @@ class ReplayBuffer:
         ignored."""
         T = len(ep["act"])
         j = (self.i + np.arange(T)) % self.capacity          # the slots this episode takes
+        # n-step returns (nstep > 1; DrQ-v2's 3): r_t + gamma r_t+1 + ... over m = min(nstep, T - t) steps,
+        # bootstrapped from o_t+m with gamma^m, unless the episode ended in success within them
+        m = np.minimum(self.nstep, T - np.arange(T))
+        rew = np.asarray(ep["rew"], np.float64)
+        ret = np.array([np.sum(rew[t:t + m[t]] * self.gamma ** np.arange(m[t])) for t in range(T)])
         for k in self.obs:
             self.obs[k][j] = ep["obs"][k][:T]
-            self.next_obs[k][j] = ep["obs"][k][1:T + 1]
-        self.act[j], self.rew[j], self.term[j] = ep["act"], ep["rew"], ep["term"]
+            self.next_obs[k][j] = ep["obs"][k][np.arange(T) + m]
+        self.act[j], self.term[j] = ep["act"], np.asarray(ep["term"])[np.arange(T) + m - 1]
+        self.rew[j] = ep["rew"] if self.nstep == 1 else ret
+        self.disc[j] = np.float32(self.gamma) ** m
         self.i = (self.i + T) % self.capacity
         self.n = min(self.n + T, self.capacity)
 
@@ -224,7 +232,7 @@ class ReplayBuffer:
             o["image"], o2["image"] = jitter(o["image"], rng, jitter_s), jitter(o2["image"], rng, jitter_s)
         if shift and "image" in o:
             o["image"], o2["image"] = random_shift(o["image"], rng, shift), random_shift(o2["image"], rng, shift)
-        return o, self.act[idx], self.rew[idx], o2, self.term[idx]
+        return o, self.act[idx], self.rew[idx], o2, self.term[idx], self.disc[idx]
 
 
 def random_shift(images, rng, pad):
@@ -308,8 +316,10 @@ class SAC:
                 f"critics {n(self.enc, self.q):,} (encoder {n(self.enc):,}, twin Q {n(self.q):,})")
 
     def update(self, batch):
-        """One gradient step on a batch from ReplayBuffer.sample; returns the losses."""
-        o, a, r, o2, term = batch
+        """One gradient step on a batch from ReplayBuffer.sample, (o, a, r, o', terminated[, discount]) (without
+        the discount: gamma, one-step returns); returns the losses."""
+        o, a, r, o2, term, *disc = batch
+        disc = torch.as_tensor(disc[0], device=self.device) if disc else self.gamma
         o, o2 = ({k: torch.as_tensor(v, device=self.device) for k, v in x.items()} for x in (o, o2))
         a, r, term = (torch.as_tensor(x, device=self.device) for x in (a, r, term))
         alpha = self.log_alpha.exp().detach()
@@ -320,7 +330,7 @@ class SAC:
             z2 = (self.enc_targ if self.target_encoder else self.enc)(o2)
             a2, logp2 = self.actor(z2 if self.shared else self.actor_enc(o2))
             q1_t, q2_t = self.q_targ(self.critic_input(z2, o2), a2)
-            y = td_target(r, term, torch.min(q1_t, q2_t), logp2, alpha, self.gamma)
+            y = td_target(r, term, torch.min(q1_t, q2_t), logp2, alpha, disc)
         z = self.enc(o)
         q1, q2 = self.q(self.critic_input(z, o), a)
         q_loss = F.mse_loss(q1, y) + F.mse_loss(q2, y)

@@ -80,6 +80,7 @@ class Config:
                                           "(known to the agent; --critic multimodal)")
     next_encoder: str = train_opt("target", "which encoder reads o' in the TD target: target (Polyak) or online (DrQ-v2)",
                                   ("target", "online"))
+    nstep: int = train_opt(1, "n-step returns in the TD target (DrQ-v2: 3)", bounds=(1, 20))
     actor_encoder: str = train_opt("shared", "the paper's critics lend the actor their encoder, gradient stopped (shared, "
                                              "SAC-AE/DrQ), or it has its own, trained by the actor loss (own)",
                                    ("shared", "own"))
@@ -128,7 +129,7 @@ def train(cfg, log=lambda msg: print(msg, flush=True)):
     env.np_random = np.random.default_rng(cfg.seed)
     curr = curriculum.Curriculum(cfg.curriculum, final=cfg.error_mm / 1000)     # line 6: Eq. 16's parameters
     sac, stop, rng = make_sac(cfg), StopRule(cfg), np.random.default_rng(cfg.seed + 1)   # (rng: replay sampling)
-    buf = policy.ReplayBuffer(cfg.buffer, obs_shapes(cfg))                      # R
+    buf = policy.ReplayBuffer(cfg.buffer, obs_shapes(cfg), nstep=cfg.nstep, gamma=cfg.gamma)    # R
     run = rundir.Run(cfg, {"sac": sac, "curriculum": curr, "stop": stop, "env_rng": env.np_random, "sample_rng": rng},
                      buf, log, probe_update=cfg.updates * rundir.update_seconds(sac, zero_batch(buf, cfg.batch)))
     if run.extended:                                       # a finished run trained on validates anew
@@ -430,7 +431,7 @@ def check(cfg):
 
 def default_run_dir(cfg):
     """runs/<task>-[vanilla-]<obs>-<curriculum>[-e<E_r mm>][-roi-<roi>][-<critic>][-aug<s>][-shift<px>][-extra]
-    [-next-online][-norm-modality][-own-actor-enc]-s<seed>: the flags of the baselines, ablations and options are in its name, so
+    [-next-online][-norm-modality][-own-actor-enc][-n<steps>]-s<seed>: the flags of the baselines, ablations and options are in its name, so
     that no run overwrites another's directory."""
     name = f"{cfg.task}-{'vanilla-' if cfg.vanilla else ''}{cfg.obs}-{cfg.curriculum}"
     name += f"-e{cfg.error_mm:g}" if cfg.error_mm != Config.error_mm else ""
@@ -442,6 +443,7 @@ def default_run_dir(cfg):
     name += f"-next-{cfg.next_encoder}" if cfg.next_encoder != Config.next_encoder else ""
     name += f"-norm-{cfg.fusion_norm}" if cfg.fusion_norm != Config.fusion_norm else ""
     name += "-own-actor-enc" if cfg.actor_encoder == "own" else ""
+    name += f"-n{cfg.nstep}" if cfg.nstep > 1 else ""
     return os.path.join("runs", f"{name}-s{cfg.seed}")
 
 

@@ -55,7 +55,7 @@ def median_ms(fn, calls, repeats):
 
 def parts(sac, buf, rng, batch, calls, repeats):
     """{part: ms a call}, timed alone on one batch."""
-    o, a, r, o2, term = buf.sample(batch, rng)
+    o, a, r, o2, term, _ = buf.sample(batch, rng)
     to_t = lambda d: {k: torch.as_tensor(v) for k, v in d.items()}   # noqa: E731
     ot = to_t(o)
     enc, actor, q = sac.actor_enc, sac.actor, sac.q

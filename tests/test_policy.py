@@ -58,6 +58,19 @@ def test_td_target_bootstraps_time_outs_only():
     assert y[1].item() == pytest.approx(1.0)                          # terminated: none
 
 
+def test_n_step_returns_sum_the_discounted_rewards_and_stop_at_the_episode_end():
+    rng = np.random.default_rng(1)
+    buf = policy.ReplayBuffer(10, {"pose_hist": (32, 6)}, nstep=3, gamma=0.5)
+    obs = {"pose_hist": np.zeros((6, 32, 6), np.float32)}
+    obs["pose_hist"][:, 0, 0] = np.arange(6)                       # a step counter
+    buf.add_episode({"obs": obs, "act": rng.uniform(-1, 1, (5, 6)), "rew": np.array([1.0, 2, 4, 8, 16]),
+                     "term": np.array([0, 0, 0, 0, 1.0])})          # success at the 5th step
+    np.testing.assert_allclose(buf.rew[:5], [1 + 1 + 1, 2 + 2 + 2, 4 + 4 + 4, 8 + 8, 16])
+    np.testing.assert_array_equal(buf.next_obs["pose_hist"][:5, 0, 0], [3, 4, 5, 5, 5])
+    np.testing.assert_array_equal(buf.term[:5], [0, 0, 1, 1, 1])    # within 3 steps of the success: no bootstrap
+    np.testing.assert_allclose(buf.disc[:5], [0.125, 0.125, 0.125, 0.25, 0.5])
+
+
 def test_replay_keeps_uint8_images_and_pairs_o_with_o_next():
     rng = np.random.default_rng(1)
     buf = policy.ReplayBuffer(50, {"image": (80, 80), "pose_hist": (32, 6), "wrench_hist": (32, 6)})
@@ -68,13 +81,13 @@ def test_replay_keeps_uint8_images_and_pairs_o_with_o_next():
         buf.add_episode({"obs": obs, "act": rng.uniform(-1, 1, (20, 6)), "rew": np.arange(20.0),
                          "term": np.r_[np.zeros(19), 1.0]})
     assert len(buf) == 50                                           # 60 added, ring of 50
-    o, a, r, o2, term = buf.sample(200, rng)
+    o, a, r, o2, term, disc = buf.sample(200, rng)
     np.testing.assert_array_equal(o2["pose_hist"][:, 0, 0], o["pose_hist"][:, 0, 0] + 1)
     assert set(term[r == 19]) == {1.0} and set(term[r != 19]) == {0.0}
     # --augment: the sampled images jittered, o and o' each their own way; the buffer's own left as they were
     stored = buf.obs["image"].copy()
-    o, _, _, o2, _ = buf.sample(200, np.random.default_rng(3), jitter_s=0.4)
-    o_plain, _, _, o2_plain, _ = buf.sample(200, np.random.default_rng(3))
+    o, _, _, o2, _, _ = buf.sample(200, np.random.default_rng(3), jitter_s=0.4)
+    o_plain, _, _, o2_plain, _, _ = buf.sample(200, np.random.default_rng(3))
     np.testing.assert_array_equal(buf.obs["image"], stored)
     np.testing.assert_array_equal(o["pose_hist"], o_plain["pose_hist"])
     assert o["image"].dtype == np.uint8 and not np.array_equal(o["image"], o_plain["image"])
