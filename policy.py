@@ -412,7 +412,7 @@ def load_file(path, device="cpu"):
 def save_policy(path, sac, meta):
     """policy.pt: the actor and the encoder it reads (the critics stay behind), and meta, a dict of
     plain values that evaluation must know of training ('obs' among them: the encoder's kind)."""
-    save_atomic({"format": POLICY_FORMAT, **meta, "encoder": sac.actor_enc.state_dict(),
+    save_atomic({"format": POLICY_FORMAT, **meta, "norm": sac.actor_enc.norm_kind, "encoder": sac.actor_enc.state_dict(),
                  "actor": sac.actor.state_dict()}, path)
 
 
@@ -425,7 +425,7 @@ class TrainedPolicy:
             raise ValueError("not a tacrl policy file")
         self.meta = {k: v for k, v in d.items() if k not in ("format", "encoder", "actor")}
         self.device = device
-        self.encoder = Encoder(d["obs"]).to(device).eval()
+        self.encoder = Encoder(d["obs"], norm=d.get("norm", "joint")).to(device).eval()   # (files before 'norm': joint)
         self.encoder.load_state_dict(d["encoder"])
         self.actor = Actor(self.encoder.out_dim).to(device).eval()
         self.actor.load_state_dict(d["actor"])

@@ -236,3 +236,12 @@ def test_the_papers_critics_with_extras_and_the_online_next_encoder_update(norm)
                          np.zeros(16, np.float32)))
     assert all(np.isfinite(v) for v in losses.values())
     assert sac.act(fake_obs(rng)).shape == (6,)            # the actor reads no 'extra'
+
+
+def test_a_saved_policy_keeps_its_encoders_layout(tmp_path):
+    torch.manual_seed(0)
+    sac = policy.SAC("ts-ptv", norm="modality", own_actor_encoder=True)
+    policy.save_policy(str(tmp_path / "p.pt"), sac, {"task": "peg", "obs": "ts-ptv"})
+    pi = policy.TrainedPolicy(policy.load_file(str(tmp_path / "p.pt")))
+    obs = fake_obs(np.random.default_rng(0))
+    np.testing.assert_array_equal(pi(obs), sac.act(obs, deterministic=True))
