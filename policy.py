@@ -279,7 +279,7 @@ class SAC:
 
     def __init__(self, obs_kind="ts-ptv", pose_scale=np.ones(6), wrench_scale=np.ones(6), act_dim=6,
                  lr=3e-4, gamma=0.95, tau=0.005, init_alpha=0.1, target_entropy=None, state_dim=0, device="cpu",
-                 extra_dim=0, target_encoder=True, norm="joint", own_actor_encoder=False):
+                 extra_dim=0, target_encoder=True, norm="joint", own_actor_encoder=False, aux_reward=0.0):
         self.device, self.gamma, self.tau = torch.device(device), gamma, tau
         # the paper's critics lend the actor their encoder, unless it has one of its own (as it always has with
         # privileged critics), trained through the actor loss
@@ -300,7 +300,13 @@ class SAC:
         self._targ_params = list(self.enc_targ.parameters()) + list(self.q_targ.parameters())
         # fused Adam: one kernel a step for all parameters; the same Adam to rounding (1.5e-7 apart after 10
         # updates), 1.06x the updates/s of foreach=True here (bench/bench_update.py)
-        self.q_opt = torch.optim.Adam(self._online_params, lr=lr, fused=True)
+        # aux_reward w: a head on the critics' input and the action predicts the reward, its squared error (x w)
+        # added to the critics' loss, so that their encoder gets a gradient of lower variance than the TD error's
+        # (UNREAL's reward prediction, Jaderberg et al. 2017; the reward is the environment's, no other label)
+        self.aux_reward = aux_reward
+        self.r_head = mlp(self.enc.out_dim + extra_dim + act_dim, 1, (256,)).to(self.device) if aux_reward else None
+        self.q_opt = torch.optim.Adam(self._online_params + (list(self.r_head.parameters()) if aux_reward else []),
+                                      lr=lr, fused=True)
         actor_params = list(self.actor.parameters()) + ([] if self.shared else list(self.actor_enc.parameters()))
         self.pi_opt = torch.optim.Adam(actor_params, lr=lr, fused=True)
         self.alpha_opt = torch.optim.Adam([self.log_alpha], lr=lr, fused=True)
@@ -334,8 +340,11 @@ class SAC:
         z = self.enc(o)
         q1, q2 = self.q(self.critic_input(z, o), a)
         q_loss = F.mse_loss(q1, y) + F.mse_loss(q2, y)
+        aux = 0.0
+        if self.aux_reward:
+            aux = self.aux_reward * F.mse_loss(self.r_head(torch.cat([self.critic_input(z, o), a], 1)).squeeze(-1), r)
         self.q_opt.zero_grad(set_to_none=True)
-        q_loss.backward()
+        (q_loss + aux).backward()
         self.q_opt.step()
 
         # actor: maximise min Q(o, pi(o)) - alpha log pi, the critics only read
@@ -374,6 +383,8 @@ class SAC:
              "q_opt": self.q_opt, "pi_opt": self.pi_opt, "alpha_opt": self.alpha_opt}
         if not self.shared:
             m["actor_enc"] = self.actor_enc
+        if self.r_head is not None:
+            m["r_head"] = self.r_head
         return m
 
     def state_dict(self):

@@ -229,7 +229,8 @@ def test_random_shift_moves_each_image_by_at_most_pad_pixels_repeating_its_edges
 def test_the_papers_critics_with_extras_and_the_online_next_encoder_update(norm):
     rng = np.random.default_rng(0)
     torch.manual_seed(0)
-    sac = policy.SAC("ts-ptv", extra_dim=3, target_encoder=False, norm=norm, own_actor_encoder=norm == "modality")
+    sac = policy.SAC("ts-ptv", extra_dim=3, target_encoder=False, norm=norm, own_actor_encoder=norm == "modality",
+                     aux_reward=1.0 if norm == "joint" else 0.0)
     assert (sac.actor_enc is sac.enc) == (norm == "joint")
     o, o2 = ({**fake_obs(rng, 16), "extra": rng.uniform(0, 1, (16, 3)).astype(np.float32)} for _ in range(2))
     losses = sac.update((o, rng.uniform(-1, 1, (16, 6)).astype(np.float32), rng.normal(size=16).astype(np.float32), o2,
