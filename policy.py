@@ -279,7 +279,8 @@ class SAC:
 
     def __init__(self, obs_kind="ts-ptv", pose_scale=np.ones(6), wrench_scale=np.ones(6), act_dim=6,
                  lr=3e-4, gamma=0.95, tau=0.005, init_alpha=0.1, target_entropy=None, state_dim=0, device="cpu",
-                 extra_dim=0, target_encoder=True, norm="joint", own_actor_encoder=False, aux_reward=0.0):
+                 extra_dim=0, target_encoder=True, norm="joint", own_actor_encoder=False, aux_reward=0.0,
+                 aux_state=0.0):
         self.device, self.gamma, self.tau = torch.device(device), gamma, tau
         # the paper's critics lend the actor their encoder, unless it has one of its own (as it always has with
         # privileged critics), trained through the actor loss
@@ -305,8 +306,14 @@ class SAC:
         # (UNREAL's reward prediction, Jaderberg et al. 2017; the reward is the environment's, no other label)
         self.aux_reward = aux_reward
         self.r_head = mlp(self.enc.out_dim + extra_dim + act_dim, 1, (256,)).to(self.device) if aux_reward else None
-        self.q_opt = torch.optim.Adam(self._online_params + (list(self.r_head.parameters()) if aux_reward else []),
-                                      lr=lr, fused=True)
+        # aux_state w (the paper's critics): a linear head on their encoder's features predicts obs['state'][:4],
+        # what training knows of the state (the offset from the true goal; the label only, never an input), its
+        # squared error (x w) added to their loss: an auxiliary task on privileged information, as Mirowski et
+        # al. (2017) predict depth; the critics read the paper's observation alone
+        self.aux_state = aux_state
+        self.s_head = nn.Linear(self.enc.out_dim, 4).to(self.device) if aux_state else None
+        heads = [h for h in (self.r_head, self.s_head) if h is not None]
+        self.q_opt = torch.optim.Adam(self._online_params + [p for h in heads for p in h.parameters()], lr=lr, fused=True)
         actor_params = list(self.actor.parameters()) + ([] if self.shared else list(self.actor_enc.parameters()))
         self.pi_opt = torch.optim.Adam(actor_params, lr=lr, fused=True)
         self.alpha_opt = torch.optim.Adam([self.log_alpha], lr=lr, fused=True)
@@ -343,6 +350,8 @@ class SAC:
         aux = 0.0
         if self.aux_reward:
             aux = self.aux_reward * F.mse_loss(self.r_head(torch.cat([self.critic_input(z, o), a], 1)).squeeze(-1), r)
+        if self.aux_state:
+            aux = aux + self.aux_state * F.mse_loss(self.s_head(z), o["state"][:, :4])
         self.q_opt.zero_grad(set_to_none=True)
         (q_loss + aux).backward()
         self.q_opt.step()
@@ -385,6 +394,8 @@ class SAC:
             m["actor_enc"] = self.actor_enc
         if self.r_head is not None:
             m["r_head"] = self.r_head
+        if self.s_head is not None:
+            m["s_head"] = self.s_head
         return m
 
     def state_dict(self):

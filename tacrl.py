@@ -83,6 +83,8 @@ class Config:
     nstep: int = train_opt(1, "n-step returns in the TD target (DrQ-v2: 3)", bounds=(1, 20))
     aux_reward: float = train_opt(0.0, "weight of a reward-prediction loss on the critics' encoder (UNREAL; 0: none)",
                                   bounds=(0, None))
+    aux_offset: float = train_opt(0.0, "weight of a loss on the critics' encoder predicting X - X_g, which training "
+                                       "knows (a label, never an input; 0: none)", bounds=(0, None))
     actor_encoder: str = train_opt("shared", "the paper's critics lend the actor their encoder, gradient stopped (shared, "
                                              "SAC-AE/DrQ), or it has its own, trained by the actor loss (own)",
                                    ("shared", "own"))
@@ -215,13 +217,14 @@ def make_sac(cfg, device=None):
                       state_dim=STATE_DIM if cfg.critic == "privileged" else 0,
                       device=device or ("cpu" if cfg.device == "auto" else cfg.device),
                       extra_dim=EXTRA_DIM if cfg.critic_extra else 0, target_encoder=cfg.next_encoder == "target",
-                      norm=cfg.fusion_norm, own_actor_encoder=cfg.actor_encoder == "own", aux_reward=cfg.aux_reward)
+                      norm=cfg.fusion_norm, own_actor_encoder=cfg.actor_encoder == "own", aux_reward=cfg.aux_reward,
+                      aux_state=cfg.aux_offset)
 
 
 def obs_shapes(cfg):
     """What the replay buffer keeps of an observation (the critics' 'state' only where they read it)."""
     return {"image": (sim.IMG, sim.IMG), "pose_hist": (sim.HIST, 6), "wrench_hist": (sim.HIST, 6),
-            **({"state": (STATE_DIM,)} if cfg.critic == "privileged" else {}),
+            **({"state": (STATE_DIM,)} if cfg.critic == "privileged" or cfg.aux_offset else {}),
             **({"extra": (EXTRA_DIM,)} if cfg.critic_extra else {})}
 
 
@@ -389,9 +392,10 @@ def check(cfg):
             (cfg.eval and cfg.eval not in baselines.NAMES and not os.path.isfile(cfg.eval),
              f"--eval must be {', '.join(baselines.NAMES)} or an existing policy.pt file, not {cfg.eval!r}"),
             (cfg.eval == "two-step" and cfg.task != "peg", "--eval two-step is the peg-in-hole baseline (Table 1)"),
-            (cfg.critic != "multimodal" and (cfg.critic_extra, cfg.next_encoder, cfg.actor_encoder, cfg.aux_reward) !=
-             (False, "target", "shared", 0.0), "--critic-extra, --next-encoder, --actor-encoder and --aux-reward change "
-                                               "the paper's critics: they need --critic multimodal"),
+            (cfg.critic != "multimodal" and (cfg.critic_extra, cfg.next_encoder, cfg.actor_encoder, cfg.aux_reward,
+                                             cfg.aux_offset) != (False, "target", "shared", 0.0, 0.0),
+             "--critic-extra, --next-encoder, --actor-encoder, --aux-reward and --aux-offset change the paper's critics: "
+             "they need --critic multimodal"),
             (cfg.buffer < max(cfg.batch, sim.MAX_STEPS), f"--buffer {cfg.buffer} must hold an episode ({sim.MAX_STEPS} "
                                                          f"transitions) and a batch (--batch {cfg.batch})"),
             (cfg.video and os.path.splitext(cfg.video)[1].lower() not in evaluate.VIDEO_CODECS,
@@ -434,7 +438,7 @@ def check(cfg):
 
 def default_run_dir(cfg):
     """runs/<task>-[vanilla-]<obs>-<curriculum>[-e<E_r mm>][-roi-<roi>][-<critic>][-aug<s>][-shift<px>][-extra]
-    [-next-online][-norm-modality][-own-actor-enc][-n<steps>][-auxr<w>]-s<seed>: the flags of the baselines, ablations and options are in its name, so
+    [-next-online][-norm-modality][-own-actor-enc][-n<steps>][-auxr<w>][-auxo<w>]-s<seed>: the flags of the baselines, ablations and options are in its name, so
     that no run overwrites another's directory."""
     name = f"{cfg.task}-{'vanilla-' if cfg.vanilla else ''}{cfg.obs}-{cfg.curriculum}"
     name += f"-e{cfg.error_mm:g}" if cfg.error_mm != Config.error_mm else ""
@@ -448,6 +452,7 @@ def default_run_dir(cfg):
     name += "-own-actor-enc" if cfg.actor_encoder == "own" else ""
     name += f"-n{cfg.nstep}" if cfg.nstep > 1 else ""
     name += f"-auxr{cfg.aux_reward:g}" if cfg.aux_reward else ""
+    name += f"-auxo{cfg.aux_offset:g}" if cfg.aux_offset else ""
     return os.path.join("runs", f"{name}-s{cfg.seed}")
 
 

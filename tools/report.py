@@ -90,7 +90,7 @@ def method_of(cfg):
         name = f"{cfg['obs']}, {cfg['curriculum']} to {cfg['error_mm']:g} mm, roi {cfg['roi']}"
     default = tacrl.Config()
     changed = [f"{k} {cfg[k]}" for k in ("critic", "updates", "warmup", "batch", "lr", "gamma", "target_entropy", "augment",
-                                         "shift", "critic_extra", "next_encoder", "fusion_norm", "actor_encoder", "nstep", "aux_reward")
+                                         "shift", "critic_extra", "next_encoder", "fusion_norm", "actor_encoder", "nstep", "aux_reward", "aux_offset")
                if k in cfg and cfg[k] != getattr(default, k)]
     return name + (f" ({', '.join(changed)})" if changed else "")
 
