@@ -199,6 +199,25 @@ def test_report_is_written_from_an_archive(tiny_run, tmp_path):
     assert (docs / "fig-peg-runs.png").stat().st_size > 0 and not (docs / "fig-peg-obs.png").exists()
 
 
+def test_compare_lists_finished_and_unfinished_runs_and_refuses_two_worlds(tiny_run, tmp_path):
+    unfinished = tmp_path / "runs" / "unfinished"
+    unfinished.mkdir(parents=True)
+    for f in ("config.json", "metrics.csv"):
+        shutil.copy(os.path.join(tiny_run["dir"], f), unfinished / f)
+    docs = tmp_path / "docs"
+    assert tacrl.command("report", lambda: report.main([f"{tiny_run['dir']},{unfinished}", "--compare", "cmp",
+                                                         "--out", str(docs)])) == 0
+    rows = [ln for ln in (docs / "cmp.md").read_text().splitlines() if ln.startswith("|")][2:]   # under the header
+    assert len(rows) == 2 and sum("unfinished" in r for r in rows) == 1 and (docs / "cmp.png").stat().st_size > 0
+    other = tmp_path / "runs" / "other-world"
+    shutil.copytree(tiny_run["dir"], other)
+    ev = json.loads((other / "eval.json").read_text())
+    (other / "eval.json").write_text(json.dumps({**ev, "world": ev["world"] - 1}))
+    assert tacrl.command("report", lambda: report.main([f"{tiny_run['dir']},{other}", "--compare", "cmp",
+                                                         "--out", str(docs)])) == 2
+    assert tacrl.command("report", lambda: report.main([tiny_run["dir"], "--compare", "../x"])) == 2
+
+
 def test_behaviour_and_view_figures(tiny_run, tmp_path, monkeypatch):
     monkeypatch.setattr(sim, "MAX_STEPS", SHORT)
     rec, term = report.record_episode(report.load_run(tiny_run["dir"]), error_mm=0.0)

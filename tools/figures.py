@@ -41,10 +41,13 @@ def plot_groups(groups, keys, out, title):
         ax.set_ylabel(CURVES[key])
         ax.grid(alpha=0.3)
     fig.suptitle(title, fontsize=10)
-    if len(groups) <= 4:
+    handles, labels = axs[0][0].get_legend_handles_labels()
+    if len(groups) <= 4 and max(map(len, labels)) <= 40:
         axs[0][0].legend(fontsize=7)
+    elif len(groups) <= 4:                 # long labels: below the panels, off the data
+        fig.legend(handles, labels, fontsize=7, loc="upper center", bbox_to_anchor=(0.5, 0.0))
     else:                                  # many curves: the legend to the right, off the data
-        fig.legend(*axs[0][0].get_legend_handles_labels(), fontsize=7, loc="center left", bbox_to_anchor=(1.0, 0.5))
+        fig.legend(handles, labels, fontsize=7, loc="center left", bbox_to_anchor=(1.0, 0.5))
     fig.tight_layout()
     fig.savefig(out, dpi=110, bbox_inches="tight")
     plt.close(fig)

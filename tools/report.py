@@ -542,6 +542,40 @@ def write_contexts(patterns, out_dir, levels=LEVELS, episodes=20, jobs=1, log=pr
     return 0
 
 
+def write_compare(patterns, out_dir, name, log=print):
+    """A comparison of learning settings (docs/CRITICS.md's runs): every run, finished or not, one row each
+    (settings, seed, episodes, where the curriculum stood and when it first reached the final range, the
+    evaluation, minutes), and their curves grouped by setting, to out_dir/<name>.md and <name>.png. Runs of
+    two worlds are refused: their numbers cannot share a table."""
+    tacrl.check_dir_writable(out_dir, "--out")
+    runs = [load_run(d) for d in match_runs(patterns)]
+    worlds = {r["eval"].get("world") if r["eval"] else sim.WORLD for r in runs}   # an unfinished run: of this code's
+    if len(worlds) > 1:
+        raise ArgError(f"{patterns!r}: runs of worlds {sorted(map(str, worlds))}; one world per table")
+    os.makedirs(out_dir, exist_ok=True)
+    md = [f"Made by `python tools/report.py \"{patterns}\" --compare {name}` (world {worlds.pop()}). E_r: where the "
+          "curriculum stood at the last episode, the most it reached, and the first episode at the final range; "
+          "SR on the held-out evaluation seeds (20 episodes a level); a run without an evaluation did not finish.", "",
+          "| settings | seed | episodes | E_r last / max (mm) | first at final | eval SR " +
+          " / ".join(f"{mm:g}" for mm in LEVELS) + " mm | minutes |", "|---" * 7 + "|"]
+    groups = {}
+    for r in sorted(runs, key=lambda r: (method_of(r["cfg"]), r["cfg"]["seed"])):
+        m, cfg = r["m"], r["cfg"]
+        at_final = np.flatnonzero(m["e_r_mm"] >= cfg["error_mm"] - 1e-6)
+        ev = r["eval"]
+        sr = " / ".join(f"{x['success_rate']:.2f}" for x in ev["rows"]) if ev else "unfinished"
+        minutes = ev["train_minutes"] if ev else m["elapsed_s"][-1] / 60
+        md.append(f"| {method_of(cfg)} | {cfg['seed']} | {len(m['episode'])} | {m['e_r_mm'][-1]:.1f} / "
+                  f"{m['e_r_mm'].max():.1f} | {int(m['episode'][at_final[0]]) if len(at_final) else '-'} | {sr} | {minutes:.1f} |")
+        groups.setdefault(method_of(cfg), []).append(r)
+    figures.plot_groups(groups, ("e_r_mm", "sr15"), os.path.join(out_dir, f"{name}.png"), f"{name}: curves by setting")
+    md += ["", f"![{name}]({name}.png)", "", "*Curves by setting: mean over seeds (band: 95 % bootstrap over seeds).*"]
+    with open(os.path.join(out_dir, f"{name}.md"), "w") as f:
+        f.write("\n".join(md) + "\n")
+    log(f"wrote {out_dir}/{name}.md and {name}.png")
+    return 0
+
+
 def main(argv=None):
     ap = tacrl.Parser(description=__doc__.split("\n\n")[0])
     ap.add_argument("runs", help="comma-separated glob patterns of run directories, e.g. 'results/*'")
@@ -550,12 +584,18 @@ def main(argv=None):
     ap.add_argument("--out", default="docs", help="where the report is written (default: docs)")
     ap.add_argument("--contexts", action="store_true", help="evaluate ours and its full view in every context "
                     "instead, to --out/CONTEXTS.md (Fig. 12)")
+    ap.add_argument("--compare", default="", metavar="NAME", help="a table and curves of the runs by learning setting "
+                    "instead, to --out/NAME.md and NAME.png")
     ap.add_argument("--jobs", type=int, default=1, help="processes for --contexts' evaluations (one torch thread each)")
     a = ap.parse_args(argv)
     if a.jobs < 1:
         raise ArgError(f"--jobs must be at least 1, not {a.jobs}")
     if a.archive:
         archive_runs(a.runs, a.to)
+    elif a.compare:
+        if not a.compare.replace("-", "").replace("_", "").isalnum():
+            raise ArgError(f"--compare takes a file name of letters, digits, - and _, not {a.compare!r}")
+        write_compare(a.runs, a.out, a.compare)
     elif a.contexts:
         write_contexts(a.runs, a.out, jobs=a.jobs)
     else:
