@@ -5,7 +5,7 @@
                     where the replay ring stands (a kill loses at most the episode in flight)
     replay/         one ep_NNNNNN.npz an episode the ring still holds (plain arrays, no pickle)
     metrics.csv     one row an episode (METRICS); tb/ the same for TensorBoard, with --track
-    train.log       the console, where tools/seeds.py started the run
+    train.log       the console, where tools/sweep.py started the run
     policy.pt, curves.png, eval.json, eval-*.json   what the finished run's policy made; extended, a run
                     sets them aside as NAME-epN.EXT (set_aside) and makes them anew
 

@@ -10,7 +10,7 @@ Eq. 16 (curriculum.py) widens the error range; then its evaluation (evaluate.py,
     python tacrl.py --task peg --eval two-step --error-mm 20    # the classical baseline (baselines.py)
 
 The file reads top to bottom: the run's config (every flag, once), Algorithm 1 (train), then the command
-line. What a run directory holds is rundir.py's; several seeds at once: tools/seeds.py.
+line. What a run directory holds is rundir.py's; several seeds and the paper's experiments at once: tools/sweep.py.
 """
 import dataclasses
 import importlib
@@ -352,7 +352,7 @@ class ArgError(Exception):
 
 
 class Failed(Exception):
-    """Work that was started and failed (a training run of tools/seeds.py): one line, exit code 1."""
+    """Work that was started and failed (a training run of tools/sweep.py): one line, exit code 1."""
 
 
 def parse_args(argv):

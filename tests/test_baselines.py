@@ -1,12 +1,8 @@
-"""The two-step baseline's parts (hole detection, calibration and visual servo), and the command lines
-of tools/seeds.py."""
-import os
+"""The two-step baseline's parts (hole detection, calibration and visual servo)."""
 
 import numpy as np
-import pytest
 
 import baselines
-import seeds
 import sim
 import tacrl
 
@@ -50,34 +46,6 @@ def test_two_step_calibration_is_the_same_in_every_process_and_after_any_history
         env.close()
         fits.append((ts.coef, ts.bias))
     assert np.array_equal(fits[0][0], fits[1][0]) and np.array_equal(fits[0][1], fits[1][1])
-
-
-def test_seed_commands_one_run_dir_and_thread_share_per_seed():
-    argv = ["--task", "gear", "--train-episodes", "5", "--seed", "7"]
-    parallel, jobs = seeds.seed_commands([0, 1, 2], argv, cores=2)
-    assert parallel == 2 and [j[0] for j in jobs] == [0, 1, 2]
-    assert [j[1] for j in jobs] == [f"runs/gear-ts-ptv-adaptive-s{s}" for s in (0, 1, 2)]
-    cmd = jobs[1][2]
-    assert cmd.count("--seed") == 1 and cmd[cmd.index("--seed") + 1] == "1" and cmd[cmd.index("--threads") + 1] == "1"
-    assert cmd[cmd.index("--train-episodes") + 1] == "5" and cmd[cmd.index("--task") + 1] == "gear"
-
-
-def test_seeds_never_ask_for_more_threads_than_cores_and_warn_where_the_user_does(capsys, tmp_path, monkeypatch):
-    monkeypatch.chdir(tmp_path)
-    parallel, jobs = seeds.seed_commands([0, 1, 2], ["--task", "peg"], cores=2)   # 2 at a time, 1 thread each
-    assert parallel * int(jobs[0][2][jobs[0][2].index("--threads") + 1]) <= 2 and capsys.readouterr().err == ""
-    seeds.seed_commands([0, 1], ["--task", "peg", "--threads", "2"], cores=2)
-    assert capsys.readouterr().err.startswith("seeds: warning: 2 x 2 torch threads on 2 cores")
-    tacrl.parse_args(["--task", "peg", "--threads", str(2 * (os.cpu_count() or 1))])
-    assert "tacrl: warning:" in capsys.readouterr().err
-
-
-@pytest.mark.parametrize("argv", [[], ["--task", "peg"], ["0,x"], ["1,1"], ["0,1", "--task", "screw"],
-                                  ["0,1", "--eval", "initial"]])
-def test_seeds_mistakes_are_one_line_and_exit_2(argv, capsys):
-    assert tacrl.command("seeds", lambda: seeds.main(argv)) == 2
-    err = capsys.readouterr().err
-    assert err.startswith("seeds: error:") and err.count("\n") == 1
 
 
 def test_ablation_runs_get_run_dirs_of_their_own():

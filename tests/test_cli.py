@@ -19,7 +19,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 @pytest.mark.parametrize("args", [["--task", "screw"], ["--episodes", "many"], ["--video", "out.avi"],
                                   ["--eval", "no/such/policy.pt"], ["--resume", "no/such/run"],
-                                  ["--seeds", "0,1"]])                # seeds.py's now
+                                  ["--seeds", "0,1"]])                # tools/sweep.py's now
 def test_bad_arguments_exit_2_with_one_line(args, capsys):
     assert tacrl.main(args) == 2
     err = capsys.readouterr().err

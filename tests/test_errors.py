@@ -6,7 +6,6 @@ import os
 import pickle
 import shutil
 import string
-import sys
 import time
 import warnings
 
@@ -17,7 +16,6 @@ from hypothesis import strategies as st
 
 import baselines
 import report
-import seeds
 import sim
 import tacrl
 
@@ -147,26 +145,6 @@ def test_ctrl_c_while_training_says_how_to_resume(here, tmp_path, capsys, monkey
     assert tacrl.main(TINY + ["--run-dir", "new"]) == 130
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and err.endswith("continue with --resume new")
-
-
-def test_seeds_never_overwrite_a_run_and_check_every_seed_first(here, tmp_path, capsys, monkeypatch, unfinished_run):
-    monkeypatch.chdir(tmp_path)
-    shutil.copytree(unfinished_run, "runs-s1")
-    before = snapshot(tmp_path)
-    assert tacrl.command("seeds", lambda: seeds.main(["0,1", *TINY, "--run-dir", "runs-s0"])) == 2
-    assert "'runs-s1' already holds a run" in capsys.readouterr().err
-    assert tacrl.command("seeds", lambda: seeds.main(["2,-3", *TINY])) == 2         # the bad one is found first
-    assert "--seed must be within 0..2147483647, not -3" in capsys.readouterr().err
-    assert snapshot(tmp_path) == before
-
-
-def test_seeds_exit_1_naming_the_seeds_whose_runs_failed(here, capsys, monkeypatch):
-    jobs = [(s, f"s{s}", [sys.executable, "-c", f"import sys; sys.exit({code})"], None)
-            for s, code in ((0, 0), (1, 3), (2, 1))]
-    monkeypatch.setattr(seeds, "seed_commands", lambda *a, **kw: (2, jobs))
-    assert tacrl.command("seeds", lambda: seeds.main(["0,1,2", "--task", "peg"])) == 1
-    err = capsys.readouterr().err
-    assert err.strip() == "seeds: failed: the runs of seeds 1, 2 failed (exit codes 3, 1): see their train.log"
 
 
 def test_report_and_archive_mistakes(here, tmp_path, capsys, monkeypatch, unfinished_run):

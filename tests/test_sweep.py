@@ -1,0 +1,91 @@
+"""tools/sweep.py: the report's experiments as a plan of independent, resumable runs, run as local
+processes and as Ray tasks on a local Ray instance (the `ray` extra, which the test extra brings)."""
+import json
+import os
+
+import pytest
+
+import report
+import sweep
+import tacrl
+
+TINY = ["--task", "peg", "--error-mm", "1", "--train-episodes", "2", "--warmup", "1", "--updates", "2", "--batch", "8",
+        "--episodes", "1", "--eval-levels", "1", "--buffer", "240", "--stop-held", "0"]
+
+
+def test_every_row_of_an_experiment_trains_the_same_budget_in_a_run_dir_of_its_own():
+    jobs = sweep.plan(list(sweep.EXPERIMENTS), [0, 1, 2], "runs")
+    assert len({j.run_dir for j in jobs}) == len(jobs) and all(j.state == "new" for j in jobs)
+    for name, rows in sweep.EXPERIMENTS.items():
+        budgets = {tuple(tacrl.parse(tacrl.Config, r, "").get(k) for k in ("train_episodes", "stop_held")) for r in rows}
+        assert len(budgets) == 1, name
+    table1 = [j.run_dir for j in jobs if j.run_dir.startswith(os.path.join("runs", "table1"))]
+    assert len(table1) == 9 and any("vanilla" in d for d in table1) and any("-v-" in d for d in table1)
+
+
+def test_a_sweep_runs_here_skips_what_finished_and_resumes_what_stopped(tmp_path, capsys):
+    root = str(tmp_path / "runs")
+    assert tacrl.command("sweep", lambda: sweep.main(["--seeds", "0,1", "--root", root, "--", *TINY])) == 0
+    out = capsys.readouterr().out
+    assert "2 runs, 0 finished already; 2 to run here" in out and out.count("finished (") == 2
+    dirs = sorted(os.path.join(root, d) for d in os.listdir(root))
+    assert [os.path.basename(d) for d in dirs] == ["peg-ts-ptv-adaptive-e1-s0", "peg-ts-ptv-adaptive-e1-s1"]
+    assert all(json.load(open(os.path.join(d, "eval.json")))["train_episodes"] == 2 for d in dirs)
+    assert "ep    2/2" in open(os.path.join(dirs[0], "train.log")).read()
+    assert tacrl.command("sweep", lambda: sweep.main(["--seeds", "0,1", "--root", root, "--list", "--", *TINY])) == 0
+    assert capsys.readouterr().out.split() == ["done", dirs[0], "done", dirs[1]]
+    os.remove(os.path.join(dirs[1], "eval.json"))            # as if stopped before its end: resumed, not restarted
+    jobs = sweep.plan([], [0, 1], root, TINY)
+    assert [j.state for j in jobs] == ["done", "resume"] and jobs[1].argv == ["--resume", dirs[1]]
+    assert tacrl.command("sweep", lambda: sweep.main(["--seeds", "0", "--root", root, "--", *TINY, "--lr", "0.001"])) == 2
+    assert "holds another run (its lr differ)" in capsys.readouterr().err     # nothing overwritten
+
+
+def test_a_sweep_runs_as_ray_tasks_on_a_local_instance_and_the_report_reads_what_finished(tmp_path):
+    import ray
+    root = str(tmp_path / "runs")
+    jobs = sweep.plan([], [0, 1], root, TINY)
+    lines = []
+    ray.init(num_cpus=2, include_dashboard=False, object_store_memory=100 * 2 ** 20, log_to_driver=False)
+    try:
+        done = sweep.run_ray(jobs, "local", 1, log=lines.append)
+    finally:
+        ray.shutdown()
+    assert sorted(code for _, code in done) == [0, 0] and sum("finished (" in x for x in lines) == 2
+    assert tacrl.command("report", lambda: report.main([f"{root}/*", "--compare", "cmp", "--out", str(tmp_path)])) == 0
+    table = [ln for ln in (tmp_path / "cmp.md").read_text().splitlines() if ln.startswith("|")][2:]
+    assert len(table) == 2 and not any("unfinished" in r for r in table)
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["nothing"], "no experiment 'nothing'; there are table1"),
+    ([], "name experiments, or give tacrl.py's flags after --"),
+    (["table1", "--", "--task", "gear"], "not both or neither"),
+    (["--", "--task", "peg", "--seed", "3"], "the sweep sets --seed, --run-dir and --threads itself"),
+    (["--seeds", "0,0", "--", "--task", "peg"], "--seeds takes distinct comma-separated values"),
+    (["--", "--task", "peg", "--lr", "2"], "--lr"),
+    (["--threads", "0", "--", "--task", "peg"], "--threads must be at least 1"),
+    (["--seeds", "2,-3", "--", "--task", "peg"], "--seed must be within 0..2147483647, not -3"),   # every seed first
+])
+def test_sweep_mistakes_are_one_line_and_exit_2(argv, message, capsys, tmp_path):
+    assert tacrl.command("sweep", lambda: sweep.main(["--root", str(tmp_path), *argv])) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("sweep: error:") and message in err and err.count("\n") == 1
+    assert not os.listdir(tmp_path)
+
+
+def test_failed_runs_are_named_and_the_sweep_exits_1(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(sweep, "command", lambda job, threads: ["python3", "-c", "import sys; sys.exit(3)"])
+    assert tacrl.command("sweep", lambda: sweep.main(["--seeds", "0,1", "--root", str(tmp_path), "--", *TINY])) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("sweep: failed: 2 of 2 runs failed") and "the same command resumes them" in err
+
+
+def test_runs_never_ask_for_more_threads_than_cores_and_a_warning_says_where_the_user_does(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(sweep.os, "cpu_count", lambda: 2)
+    argv = ["--seeds", "0,1,2", "--root", str(tmp_path), "--dry-run"]
+    assert tacrl.command("sweep", lambda: sweep.main([*argv, "--", *TINY])) == 0
+    out, err = capsys.readouterr()
+    assert err == "" and out.count("--threads 1") == 3
+    assert tacrl.command("sweep", lambda: sweep.main([*argv, "--threads", "2", "--parallel", "2", "--", *TINY])) == 0
+    assert capsys.readouterr().err.startswith("sweep: warning: 2 x 2 torch threads on 2 cores")

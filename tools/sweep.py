@@ -1,0 +1,259 @@
+"""sweep.py: the report's experiments as a plan of independent, resumable runs of tacrl.py, each in a run
+directory of its own, executed as local processes (the default: at most one a core, torch threads x
+processes <= cores) or as Ray tasks (the `ray` extra: a local Ray instance, or a cluster's address).
+A run that has finished (eval.json) is skipped, one that was stopped is resumed, so the same command
+picks a sweep up where it stopped; report.py reads whatever has finished.
+
+    python tools/sweep.py --list                                  # the experiments and their runs
+    python tools/sweep.py table1 --seeds 0,1,2                     # Table 1's learned rows -> runs/table1/...
+    python tools/sweep.py gear-obs,gear-roi --dry-run              # the commands, nothing run
+    python tools/sweep.py --seeds 0,1,2 -- --task peg --obs v      # any tacrl.py flags, several seeds
+    python tools/sweep.py table1 --ray auto --root /shared/runs    # as Ray tasks on a running cluster
+
+With --ray, every node must see the project and --root at the same paths (a shared file system): a
+task runs `python <project>/tacrl.py ... --run-dir <root>/...` there and writes its run dir, which the
+report on any node then reads. Each run's output goes to its run dir's train.log.
+"""
+import os
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+
+if __name__ == "__main__":     # Ctrl-C while torch and pybullet load: one line and exit 130
+    signal.signal(signal.SIGINT, lambda *_: (sys.stderr.write("\nsweep: interrupted\n"), os._exit(130)))
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))   # the core modules, one folder up
+import rundir  # noqa: E402
+import tacrl  # noqa: E402
+from tacrl import ArgError  # noqa: E402
+
+# The paper's experiments (Sec. 5.1.2-5.1.5), each a list of tacrl.py flag lists, one a learned row; every
+# row of an experiment trains for the same number of episodes (--stop-held 0: no stopping when learned),
+# as the paper compares them. The seeds are added to each.
+BUDGET = lambda n: ["--train-episodes", str(n), "--stop-held", "0"]   # noqa: E731
+EXPERIMENTS = {
+    "table1": [[*row, *BUDGET(200)] for row in ([], ["--vanilla"], ["--obs", "v"])],   # Table 1 (peg, 200 episodes)
+    "gear-obs": [["--task", "gear", "--curriculum", "ex10", "--obs", o, *BUDGET(200)] for o in ("pt", "ts-pt", "ts-ptv")],
+    "gear-curriculum": [["--task", "gear", "--curriculum", c, "--error-mm", mm, *BUDGET(300)]       # Fig. 10
+                        for c, mms in (("adaptive", ("10", "20", "30")), ("none", ("10", "20", "30")),
+                                       ("g2-c30", ("30",)), ("g2-c10", ("30",)), ("g2-c2", ("30",))) for mm in mms],
+    "gear-roi": [["--task", "gear", "--roi", r, *BUDGET(200)] for r in ("task", "full", "300", "200", "100x160")],
+    "contexts": [["--task", t, "--roi", r] for t in ("peg", "gear") for r in ("task", "full")],  # stop when learned
+}
+PROJECT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+@dataclass
+class Job:
+    run_dir: str
+    argv: list          # tacrl.py's flags: a new run's, or --resume DIR
+    state: str          # "new", "resume" or "done"
+
+
+def plan(experiments, seeds, root, flags=()):
+    """The jobs of `experiments` (names of EXPERIMENTS; none: one experiment of `flags`) for each seed, under
+    root/<experiment>/<run name> (root/<run name> for `flags`). Each job's command is checked as tacrl.py will
+    check it, and a run dir that already holds a run must hold this one, before anything starts."""
+    rows = [(name, row) for name in experiments for row in EXPERIMENTS[name]] or [("", list(flags))]
+    jobs = []
+    for name, row in rows:
+        for s in seeds:
+            argv = [*row, "--seed", str(s)]
+            cfg = tacrl.Config(**tacrl.parse(tacrl.Config, argv, ""))
+            jobs.append(job_of(os.path.join(root, name, os.path.basename(tacrl.default_run_dir(cfg))), argv, cfg))
+    dirs = [j.run_dir for j in jobs]
+    if len(set(dirs)) < len(dirs):
+        raise ArgError(f"two runs of the plan would share {next(d for d in dirs if dirs.count(d) > 1)}")
+    return jobs
+
+
+def job_of(run_dir, argv, cfg):
+    """A new run (its flags checked as tacrl.py checks them), the one in run_dir to resume, or one already
+    finished; ArgError where run_dir holds another run."""
+    if not os.path.exists(os.path.join(run_dir, "config.json")):
+        tacrl.parse_args([*argv, "--run-dir", run_dir])       # a mistake in the flags, or a dir not empty
+        return Job(run_dir, [*argv, "--run-dir", run_dir], "new")
+    try:
+        old = tacrl.read_config(run_dir)
+    except (OSError, ValueError) as e:
+        raise ArgError(f"{run_dir}: a damaged run directory ({tacrl.describe(e)}); move it away to run it again")
+    differ = [k for k, v in vars(cfg).items()
+              if k not in (*tacrl.RESUME_MAY_SET, "run_dir", "device") and getattr(old, k) != v]
+    if differ:
+        raise ArgError(f"{run_dir} holds another run (its {', '.join(differ)} differ): move it away or use another --root")
+    done = os.path.exists(os.path.join(run_dir, "eval.json"))
+    return Job(run_dir, ["--resume", run_dir], "done" if done else "resume")
+
+
+def command(job, threads):
+    return [sys.executable, os.path.join(PROJECT, "tacrl.py"), *job.argv, "--threads", str(threads)]
+
+
+def thread_env(threads):
+    """What a run's environment sets: numpy's BLAS and OpenMP get torch's thread count too (Ray sets OMP_NUM_THREADS
+    to a task's CPUs since Ray 2.2, PR ray-project/ray#30496; here it is the same everywhere)."""
+    return {k: str(threads) for k in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")}
+
+
+def run_job(cmd, run_dir, env, cwd, log_name=rundir.LOG):
+    """One run in `cwd`, its output appended to its run dir's train.log; its exit code. It reads only the standard
+    library, so that a Ray worker on any node, where this module may not be importable, can run it."""
+    import os
+    import subprocess
+    os.makedirs(run_dir, exist_ok=True)
+    with open(os.path.join(run_dir, log_name), "a") as log:
+        return subprocess.run(cmd, stdout=log, stderr=subprocess.STDOUT, env={**os.environ, **env}, cwd=cwd).returncode
+
+
+def last_episode(run_dir):
+    """'<episode>/<of>' from a run's log, '-' before its first episode."""
+    try:
+        with open(os.path.join(run_dir, rundir.LOG)) as f:
+            last = [ln for ln in f.read().splitlines() if ln.startswith("ep ")]
+    except OSError:
+        last = []
+    return last[-1].split()[1] if last else "-"
+
+
+class Progress:
+    """A line when a run starts or ends, and one a minute with each running run's episode."""
+
+    def __init__(self, todo, log):
+        self.t0 = self.shown = time.time()
+        self.todo, self.log = todo, log
+
+    def started(self, job):
+        self.log(f"started {job.run_dir} ({job.state}), its log {job.run_dir}/{rundir.LOG}")
+
+    def ended(self, job, code, left):
+        self.log(f"[{rundir.fmt_time(time.time() - self.t0)}] {job.run_dir}: "
+                 f"{'finished' if code == 0 else f'failed, exit code {code}'} ({left} of {self.todo} left)")
+
+    def tick(self, running):
+        if time.time() - self.shown > 60:
+            self.shown = time.time()
+            self.log(f"[{rundir.fmt_time(self.shown - self.t0)}] episodes: "
+                     + "  ".join(f"{os.path.basename(j.run_dir)} {last_episode(j.run_dir)}" for j in running))
+
+
+def run_local(jobs, parallel, threads, log=lambda m: print(m, flush=True)):
+    """The jobs as local processes, at most `parallel` at a time; [(job, exit code)]."""
+    todo, running, done, progress = list(jobs), {}, [], Progress(len(jobs), log)
+    while todo or running:
+        while todo and len(running) < parallel:
+            job = todo.pop(0)
+            os.makedirs(job.run_dir, exist_ok=True)
+            out = open(os.path.join(job.run_dir, rundir.LOG), "a")
+            running[job.run_dir] = (job, subprocess.Popen(command(job, threads), stdout=out, stderr=subprocess.STDOUT,
+                                                          env={**os.environ, **thread_env(threads)}), out)
+            progress.started(job)
+        time.sleep(0.2)
+        progress.tick([j for j, _, _ in running.values()])
+        for key, (job, proc, out) in list(running.items()):
+            if proc.poll() is not None:
+                out.close()
+                del running[key]
+                done.append((job, proc.returncode))
+                progress.ended(job, proc.returncode, len(todo) + len(running))
+    return done
+
+
+def run_ray(jobs, address, threads, log=lambda m: print(m, flush=True), init=None):
+    """The jobs as Ray tasks of `threads` CPUs each (Ray starts as many at once as the CPUs allow), on a local
+    instance (address "local") or a running cluster's ("auto", "HOST:6379", "ray://HOST:10001"); [(job, exit
+    code)]. A task whose worker dies is not retried (max_retries 0): the run is resumable by hand."""
+    try:
+        import ray
+    except ImportError:
+        raise ArgError("--ray needs Ray: pip install -e '.[ray]'")
+    if not ray.is_initialized():
+        kw = init or ({"num_cpus": os.cpu_count(), "include_dashboard": False} if address == "local" else {"address": address})
+        try:
+            ray.init(log_to_driver=False, **kw)
+        except ConnectionError as e:
+            raise ArgError(f"--ray {address}: no Ray cluster there ({tacrl.describe(e)})")
+    cloudpickle = ray.cloudpickle
+    cloudpickle.register_pickle_by_value(sys.modules[__name__])    # the task travels by value: no module to import there
+    task = ray.remote(num_cpus=threads, max_retries=0)(run_job)
+    refs = {task.remote(command(j, threads), j.run_dir, thread_env(threads), os.getcwd()): j for j in jobs}  # paths as here
+    progress, done = Progress(len(jobs), log), []
+    for j in jobs:
+        progress.started(j)          # queued: Ray starts each when a node has its CPUs free
+    while len(done) < len(jobs):
+        ready, _ = ray.wait([r for r in refs if refs[r] not in [j for j, _ in done]], num_returns=1, timeout=1.0)
+        for r in ready:
+            done.append((refs[r], ray.get(r)))
+            progress.ended(refs[r], done[-1][1], len(jobs) - len(done))
+        progress.tick([j for r, j in refs.items() if j not in [d for d, _ in done]])
+    return done
+
+
+def parse_list(text, what, cast=str):
+    try:
+        items = [cast(x) for x in text.split(",")]
+    except ValueError:
+        items = []
+    if not items or len(set(items)) != len(items):
+        raise ArgError(f"{what} takes distinct comma-separated values, not {text!r}")
+    return items
+
+
+def main(argv=None):
+    argv = sys.argv[1:] if argv is None else list(argv)
+    flags = argv[argv.index("--") + 1:] if "--" in argv else []
+    argv = argv[:argv.index("--")] if "--" in argv else argv
+    ap = tacrl.Parser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("experiments", nargs="?", default="", help=f"comma-separated, of {', '.join(EXPERIMENTS)}; "
+                    "or none, and tacrl.py's flags after --")
+    ap.add_argument("--seeds", default="0,1,2", help="comma-separated training seeds (default: 0,1,2)")
+    ap.add_argument("--root", default="runs", help="where the run dirs go (default: runs)")
+    ap.add_argument("--parallel", type=int, default=0, help="runs at once, locally (default: one a core)")
+    ap.add_argument("--ray", default="", metavar="ADDRESS", help="run as Ray tasks: 'local' (a Ray instance on this "
+                    "machine), 'auto' (the cluster this machine is in), or a cluster's address")
+    ap.add_argument("--threads", type=int, default=1, help="torch threads a run (default: 1)")
+    ap.add_argument("--list", action="store_true", help="list the experiments' runs and their state, and stop")
+    ap.add_argument("--dry-run", action="store_true", help="print the commands, run nothing")
+    a = ap.parse_args(argv)
+    names = parse_list(a.experiments, "the experiments") if a.experiments else []
+    if a.list and not flags:
+        names = names or list(EXPERIMENTS)
+    unknown = [n for n in names if n not in EXPERIMENTS]
+    if unknown:
+        raise ArgError(f"no experiment {unknown[0]!r}; there are {', '.join(EXPERIMENTS)}")
+    if bool(names) == bool(flags):
+        raise ArgError("name experiments, or give tacrl.py's flags after --, not both or neither "
+                       "(python tools/sweep.py --list shows the experiments)")
+    if flags and any(f in ("--seed", "--run-dir", "--resume", "--eval", "--threads") or
+                     f.split("=")[0] in ("--seed", "--run-dir", "--resume", "--eval", "--threads") for f in flags):
+        raise ArgError("the flags after -- are a run's: the sweep sets --seed, --run-dir and --threads itself "
+                       "(--eval and --resume are for one run: tacrl.py)")
+    if a.threads < 1 or a.parallel < 0:
+        raise ArgError("--threads must be at least 1 and --parallel at least 0")
+    jobs = plan(names, parse_list(a.seeds, "--seeds", int), a.root, flags)
+    todo = [j for j in jobs if j.state != "done"]
+    cores = os.cpu_count() or 1
+    parallel = a.parallel or max(1, cores // a.threads)      # threads x runs <= cores
+    if not a.ray:
+        tacrl.warn_oversubscribed("sweep", a.threads, min(parallel, max(1, len(todo))), cores)
+    if a.list or a.dry_run:
+        for j in jobs:
+            print(f"{j.state:6s}  {j.run_dir}" if a.list else
+                  ("# done: " if j.state == "done" else "") + " ".join(command(j, a.threads)[1:]))
+        return 0
+    print(f"{len(jobs)} runs, {len(jobs) - len(todo)} finished already; {len(todo)} to run "
+          + (f"as Ray tasks ({a.ray})" if a.ray else "here"), flush=True)
+    if a.ray:
+        done = run_ray(todo, a.ray, a.threads)
+    else:
+        done = run_local(todo, parallel, a.threads)
+    failed = [j.run_dir for j, code in done if code]
+    if failed:
+        raise tacrl.Failed(f"{len(failed)} of {len(todo)} runs failed (see their {rundir.LOG}): {', '.join(failed)}; "
+                           "the same command resumes them")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(tacrl.command("sweep", main))
