@@ -124,8 +124,8 @@ class Progress:
         self.t0 = self.shown = time.time()
         self.todo, self.log = todo, log
 
-    def started(self, job):
-        self.log(f"started {job.run_dir} ({job.state}), its log {job.run_dir}/{rundir.LOG}")
+    def started(self, job, verb="started"):
+        self.log(f"{verb} {job.run_dir} ({job.state}), its log {job.run_dir}/{rundir.LOG}")
 
     def ended(self, job, code, left):
         self.log(f"[{rundir.fmt_time(time.time() - self.t0)}] {job.run_dir}: "
@@ -180,7 +180,7 @@ def run_ray(jobs, address, threads, log=lambda m: print(m, flush=True), init=Non
     refs = {task.remote(command(j, threads), j.run_dir, thread_env(threads), os.getcwd()): j for j in jobs}  # paths as here
     progress, done = Progress(len(jobs), log), []
     for j in jobs:
-        progress.started(j)          # queued: Ray starts each when a node has its CPUs free
+        progress.started(j, "queued")          # Ray starts each when a node has its CPUs free
     while len(done) < len(jobs):
         ready, _ = ray.wait([r for r in refs if refs[r] not in [j for j, _ in done]], num_returns=1, timeout=1.0)
         for r in ready:
