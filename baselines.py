@@ -3,7 +3,7 @@ visual servoing on the eye-in-hand image to the hole, a spiral search with conta
 then insertion. Hand-designed, no learning; it acts through the same hybrid controller (Eq. 6) as the
 learned policy, by choosing F_d. The paper does not describe its implementation: this one is ours
 (README, difference 11). The other baselines of Table 1 are flags of tacrl.py: `--vanilla` (no
-trajectory guidance) and `--obs v` (vision only).
+base policy: F_d alone moves the tool) and `--obs v` (vision only).
 
     python tacrl.py --task peg --eval two-step --error-mm 20 --episodes 20
 """

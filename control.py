@@ -125,6 +125,9 @@ class HybridPolicy:
     x_i_hat, x_g_hat: estimated pre-assembly and goal poses (p, R); ex_r (6,): exploration range;
     f_max (6,): contact safety limit; m (6,): virtual mass; duration: s from X^_i to X^_g (inf:
     X_d stays at X^_i, no trajectory guidance); zeta: damping ratio of the compliance.
+    b_free (6,): no hand-designed part at all (the vanilla baseline): K = 0, so no spring pulls toward
+    tau(t) or X^_i, and this fixed damping B, so that F_d alone moves the tool (V = (F - F_d) / B in
+    steady state); W (Eq. 8) is still computed, for the reward's weights.
     """
     x_i_hat: tuple
     x_g_hat: tuple
@@ -134,11 +137,16 @@ class HybridPolicy:
     duration: float
     zeta: float = 1.0
     dt: float = 1.0 / 120.0
+    b_free: np.ndarray = None
 
     def __post_init__(self):
         self.w = workspace(self.ex_r, self.x_i_hat, self.x_g_hat)        # Eq. 8
-        k = stiffness(self.f_max, self.w)                                 # Eq. 9
-        self.adm = Admittance(np.asarray(self.m, float), critical_damping(k, self.m, self.zeta), k, self.dt)
+        m = np.asarray(self.m, float)
+        if self.b_free is None:
+            k = stiffness(self.f_max, self.w)                             # Eq. 9
+            self.adm = Admittance(m, critical_damping(k, m, self.zeta), k, self.dt)
+        else:                                                             # no base policy: a free admittance
+            self.adm = Admittance(m, np.asarray(self.b_free, float), np.zeros(6), self.dt)
         self._rv = matrix_to_rotvec(self.x_i_hat[1].T @ self.x_g_hat[1])
 
     def x_d(self, t):

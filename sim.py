@@ -51,6 +51,10 @@ EX_ROT = (0.002, 0.002)                             # exploration about x, y, ra
 TRAJ_TIME = 10.0                                    # tau(t) from X^_i to X^_g takes this long, s
 MASS = np.array([20.0, 20.0, 20.0, 0.4, 0.4, 0.4])  # M of Eq. 5: kg and kg m^2 (see README)
 ZETA = 1.0                                          # damping ratio, B = 2 zeta sqrt(K M)
+# The vanilla baseline's damping (no K, no estimated poses): the guided controller's B at the final range with
+# X^_i over X^_g (W = E_R_FINAL, EX_ROT, E_ROT_FINAL): a full F_d of 5 N moves the tool 35 mm/s, as the guided
+# one at 20 mm. Ours, one constant for every episode.
+B_FREE = ctl.critical_damping(ctl.stiffness(F_MAX6, np.array([E_R_FINAL] * 3 + list(EX_ROT) + [E_ROT_FINAL])), MASS, ZETA)
 ROI_PRESETS = {"full": (800, 800), "300": (300, 300), "200": (200, 200), "100x160": (100, 160)}   # Fig. 11, px of the full view
 
 
@@ -140,8 +144,10 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
     clearance: diametral clearance, m; e_r_max: the largest E_r this env will be set to (at least
     E_R_FINAL and e_r): Eq. 11's ROI covers it, and X_i is raised where needed so that its z error
     still starts the tool CLEAR of the parts (from 20 mm up: at 30 mm X_i is 40 mm above them);
-    trajectory: False holds X_d at X^_i (the vanilla baseline: no trajectory guidance, the residual
-    acts alone through the same compliance); render_mode: None or 'rgb_array' (render() is the
+    base_policy: False removes the hand-designed part (the vanilla baseline, Sec. 5.1.2: "without a base
+    policy"): no trajectory, no spring toward X^_i or X^_g and no stiffness from the estimated poses;
+    the residual's F_d alone drives a free admittance (K = 0, the fixed damping B_FREE); what stays is
+    the start at X^_i, the observations, the reward and the curriculum's errors; render_mode: None or 'rgb_array' (render() is the
     external camera's view); ft_noise, image_noise: the wrist sensor's noise and drift, the camera's
     shot noise (FT_NOISE, FT_DRIFT, E_PER_DN), on as on a real robot, off for exact tests.
 
@@ -153,7 +159,7 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
     metadata = {"render_modes": ["rgb_array"], "render_fps": POLICY_HZ}
 
     def __init__(self, task="peg", context="train", e_r=0.0, ex_r=None, roi="task", clearance=1e-4,
-                 gui=False, image=True, trajectory=True, e_r_max=None, render_mode=None, ft_noise=True,
+                 gui=False, image=True, base_policy=True, e_r_max=None, render_mode=None, ft_noise=True,
                  image_noise=True):
         if task not in ("peg", "gear"):
             raise ValueError(f"unknown task {task!r} (peg, gear)")
@@ -164,7 +170,7 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"unknown render_mode {render_mode!r} (None, 'rgb_array')")
         self.task, self.context, self.roi_name, self.image_on = task, context, roi, image
-        self.trajectory, self.render_mode = trajectory, render_mode
+        self.base_policy, self.render_mode = base_policy, render_mode
         if gymnasium is not None:
             self.observation_space = spaces.Dict({
                 "image": spaces.Box(0, 255, (IMG, IMG), np.uint8),
@@ -224,10 +230,10 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
         self.error = e
         ex_rot = max(E_ROT_FINAL * self.ex_r / E_R_FINAL, 0.01)
         ex = np.array([self.ex_r] * 3 + list(EX_ROT) + [ex_rot])
-        # Eq. 6's hand-designed part: tau(t) from X^_i to X^_g (never leaving X^_i for the vanilla
-        # baseline) and K from Eq. 8-9; step() adds the residual's F_d
-        self.controller = ctl.HybridPolicy(self.x_i_hat, self.x_g_hat, ex, F_MAX6, MASS,
-                                           TRAJ_TIME if self.trajectory else np.inf, ZETA, 1.0 / CONTROL_HZ)
+        # Eq. 6's hand-designed part: tau(t) from X^_i to X^_g and K from Eq. 8-9 (none for the vanilla
+        # baseline: a free admittance); step() adds the residual's F_d
+        self.controller = ctl.HybridPolicy(self.x_i_hat, self.x_g_hat, ex, F_MAX6, MASS, TRAJ_TIME, ZETA,
+                                           1.0 / CONTROL_HZ, b_free=None if self.base_policy else B_FREE)
         w.move_to(self.x_i_hat)
         w.command(np.zeros(6))
         w.step_physics(4)

@@ -72,7 +72,8 @@ class Config:
                                    "policy tries 20 there; 19 wins twice in a row stop the run (0: never)", bounds=(0, None))
     obs: str = train_opt("ts-ptv", "observations (Fig. 9); v: the visual baseline", policy.OBS_KINDS)
     curriculum: str = train_opt("adaptive", "error curriculum (Eq. 16, Fig. 10); ex10: Fig. 9's", curriculum.KINDS)
-    vanilla: bool = train_opt(False, "the vanilla baseline: no trajectory guidance, the residual acts alone")
+    vanilla: bool = train_opt(False, "the vanilla baseline, without a base policy: no trajectory, no spring, no "
+                                     "stiffness from the estimated poses; F_d alone moves the tool")
     critic: str = train_opt("privileged", "privileged: also X - X_g (README difference 13)", ("privileged", "multimodal"))
     augment: float = train_opt(0.0, "image jitter s: brightness, contrast x U(1-s, 1+s) (README difference 17)", bounds=(0, 1))
     shift: int = train_opt(0, "random image shift in the updates, up to this many pixels (DrQ; 0: none)", bounds=(0, 16))
@@ -129,7 +130,7 @@ def train(cfg, log=lambda msg: print(msg, flush=True)):
     # Lines 1-5, initialize the learning architecture: the env holds the hand-designed part of the skill (2: tau(t)
     # and K, Eq. 8-9, 14), the error range E_r (3), the ROI for E_r (4: Eq. 11, at the largest) and the reward (5)
     env = sim.AssemblyEnv(cfg.task, cfg.context, roi=cfg.roi, clearance=cfg.clearance_mm / 1000, gui=cfg.gui,
-                          trajectory=not cfg.vanilla, e_r_max=cfg.error_mm / 1000)
+                          base_policy=not cfg.vanilla, e_r_max=cfg.error_mm / 1000)
     env.np_random = np.random.default_rng(cfg.seed)
     curr = curriculum.Curriculum(cfg.curriculum, final=cfg.error_mm / 1000)     # line 6: Eq. 16's parameters
     sac, stop, rng = make_sac(cfg), StopRule(cfg), np.random.default_rng(cfg.seed + 1)   # (rng: replay sampling)
@@ -264,7 +265,7 @@ class StopRule:
 def validate(cfg, sac, curr):
     """Greedy successes at the final range, in a new env, on seeds apart from training's and evaluation's."""
     with sim.AssemblyEnv(cfg.task, cfg.context, e_r=curr.final, ex_r=curr.ranges()[1], roi=cfg.roi,
-                         e_r_max=cfg.error_mm / 1000, clearance=cfg.clearance_mm / 1000, trajectory=not cfg.vanilla) as env:
+                         e_r_max=cfg.error_mm / 1000, clearance=cfg.clearance_mm / 1000, base_policy=not cfg.vanilla) as env:
         row = evaluate.evaluate(env, lambda obs: sac.act(obs, deterministic=True), VAL_EPISODES, VAL_SEED + cfg.seed,
                                 log=lambda *_: None)
     return round(row["success_rate"] * VAL_EPISODES)

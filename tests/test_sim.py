@@ -170,6 +170,27 @@ def test_env_interface_and_seeded_errors():
     env.close()
 
 
+def test_the_vanilla_baseline_has_no_base_policy_f_d_alone_moves_the_tool():
+    """Without a base policy no spring pulls the tool toward X^_g: with F_d = 0 it stays at X^_i while the
+    guided one follows tau(t) toward X^_g; a lateral F_d moves it at about F_d / B_FREE."""
+    moved = {}
+    for base in (True, False):
+        with sim.AssemblyEnv("peg", e_r=0.01, base_policy=base, image=False, ft_noise=False) as env:
+            obs, _ = env.reset(seed=3)
+            for _ in range(5):
+                obs2, *_ = env.step(np.zeros(6))
+            moved[base] = obs2["pose_hist"][-1, :3] - obs["pose_hist"][-1, :3]       # m, in X^_g's frame
+            closer = np.linalg.norm(obs["pose_hist"][-1, :3]) - np.linalg.norm(obs2["pose_hist"][-1, :3])
+            assert closer > 0.001 if base else abs(closer) < 0.0003
+            if not base:
+                for _ in range(5):
+                    obs3, *_ = env.step(np.array([0.5, 0, 0, 0, 0, 0]))              # F_d = 2.5 N along x
+                dx = obs3["pose_hist"][-1, 0] - obs2["pose_hist"][-1, 0]
+    expect = 2.5 / sim.B_FREE[0] * 5 / sim.POLICY_HZ                                 # m in 1 s
+    assert np.abs(moved[False]).max() < 0.0003                # the free one stays where it was put
+    assert abs(abs(dx) - expect) < 0.3 * expect, (dx, expect)
+
+
 @pytest.mark.parametrize("action", [np.full(6, np.nan), [0, 0, np.inf, 0, 0, 0], np.zeros(5), np.zeros((2, 6)),
                                     "abcdef", None, [[0] * 6]])
 def test_step_refuses_an_action_that_is_not_6_finite_numbers(action, peg_env):
