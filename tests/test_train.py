@@ -199,6 +199,22 @@ def test_report_is_written_from_an_archive(tiny_run, tmp_path):
     assert (docs / "fig-peg-runs.png").stat().st_size > 0 and not (docs / "fig-peg-obs.png").exists()
 
 
+def test_table2_rows_are_evaluated_once_per_world_and_context(tiny_run, tmp_path, monkeypatch):
+    monkeypatch.setattr(sim, "MAX_STEPS", SHORT)
+    d = tmp_path / "run"
+    shutil.copytree(tiny_run["dir"], d)
+    run, said = report.load_run(str(d)), []
+    train = report.eval_cached(run, "train", levels=(1.0,), episodes=1, log=said.append)
+    assert not said and train == run["eval"]["rows"]            # the training context's rows: eval.json's
+    loc = report.eval_cached(run, "loc-2", levels=(1.0,), episodes=1, log=said.append)
+    assert len(said) == 1 and report.eval_cached(run, "loc-2", levels=(1.0,), episodes=1, log=said.append) == loc
+    cache = next(d.glob("eval-loc-2*.json"))
+    assert json.loads(cache.read_text())["world"] == sim.WORLD and len(said) == 1
+    cache.write_text(json.dumps({"world": sim.WORLD - 1, "rows": loc}))     # another world's rows: evaluated again
+    report.eval_cached(run, "loc-2", levels=(1.0,), episodes=1, log=said.append)
+    assert len(said) == 2 and json.loads(cache.read_text())["world"] == sim.WORLD
+
+
 def test_compare_lists_finished_and_unfinished_runs_and_refuses_two_worlds(tiny_run, tmp_path):
     unfinished = tmp_path / "runs" / "unfinished"
     unfinished.mkdir(parents=True)
