@@ -238,6 +238,8 @@ def test_behaviour_and_view_figures(tiny_run, tmp_path, monkeypatch):
     monkeypatch.setattr(sim, "MAX_STEPS", SHORT)
     rec, term = report.record_episode(report.load_run(tiny_run["dir"]), error_mm=0.0)
     assert len(rec["action"]) == len(rec["phase"]) > 0 and list(rec["phase"]) == sorted(rec["phase"])
+    assert np.shape(rec["saliency"]) == np.shape(rec["image"]) == (len(rec["action"]), 80, 80)
+    assert np.max(rec["saliency"]) > 0            # the lateral action depends on the image
     report.figures.plot_behaviour(rec, str(tmp_path / "behaviour.png"), "tiny")
     report.figures.plot_views("peg", ("full",), ("train", "bg-objects"), str(tmp_path / "views.png"))
     assert (tmp_path / "behaviour.png").stat().st_size > 0 and (tmp_path / "views.png").stat().st_size > 0

@@ -5,6 +5,7 @@ and actions by phase (Fig. 16). Arrays in, PNG files out, for report.py (a run's
 rundir.plot_curves).
 """
 
+import cv2
 import matplotlib
 
 matplotlib.use("Agg")                      # files only, no display
@@ -97,15 +98,31 @@ def plot_views(task, rois, contexts, out, error=(0.015, -0.010, 0.0, 0.05)):
 
 def plot_behaviour(rec, out, title):
     """Fig. 16: one episode, observations and actions scaled to [-1, 1] per channel, over its phases.
-    rec: per policy step, 'image_features' (T, 6), 'goal_offset' (T, 4) X - X_g, 'f_world' (T, 6),
-    'action' (T, 6) and 'phase' (T,): 0 free motion, 1 search after contact, 2 insertion."""
+    rec: per policy step, 'image' (T, 80, 80) and its 'saliency' (T, 80, 80), 'image_features' (T, 6),
+    'goal_offset' (T, 4) X - X_g, 'f_world' (T, 6), 'action' (T, 6) and 'phase' (T,): 0 free motion, 1 search
+    after contact, 2 insertion."""
     norm = lambda x: np.array(x) / np.maximum(np.abs(np.array(x)).max(0), 1e-9)   # noqa: E731
     panels = [("image features", norm(rec["image_features"])),
               ("relative pose X - X_g (x, y, z, yaw)", norm(rec["goal_offset"])),
               ("wrench (Fx, Fy, Fz, Tx, Ty, Tz)", norm(rec["f_world"])), ("action (F_d, 6-D)", np.array(rec["action"]))]
     phase = np.asarray(rec["phase"])
-    fig, ax = plt.subplots(len(panels), 1, figsize=(7, 8), sharex=True)
     t = np.arange(1, len(phase) + 1)
+    # the top row: the image at the first step, where each phase begins and at the end, with its saliency
+    # over it in red, opaque where the pixels move the lateral F_d most (each image on its own scale)
+    shown = sorted({0, len(phase) - 1, *[int(np.argmax(phase == ph)) for ph in (1, 2) if (phase == ph).any()]})
+    fig = plt.figure(figsize=(7, 10))
+    grid = fig.add_gridspec(len(panels) + 1, len(shown), height_ratios=[1.6] + [1] * len(panels))
+    for j, i in enumerate(shown):
+        x = fig.add_subplot(grid[0, j])
+        x.imshow(rec["image"][i], cmap="gray", vmin=0, vmax=255)
+        sal = cv2.GaussianBlur(np.asarray(rec["saliency"][i], np.float32), (0, 0), 1.5)  # a pixel's gradient is noisy
+        overlay = np.zeros((*sal.shape, 4))
+        overlay[..., 0] = 1.0
+        overlay[..., 3] = 0.9 * (sal / max(sal.max(), 1e-12)) ** 2        # squared: the peaks stand out
+        x.imshow(overlay)
+        x.set_title(f"step {i + 1} ({('free', 'contact', 'insertion')[phase[i]]})", fontsize=8)
+        x.axis("off")
+    ax = [fig.add_subplot(grid[k + 1, :]) for k in range(len(panels))]
     for x, (name, y) in zip(ax, panels):
         x.plot(t, y, lw=1)
         for ph, colour in ((0, "gold"), (1, "red"), (2, "green")):
@@ -113,8 +130,9 @@ def plot_behaviour(rec, out, title):
                 x.axvspan(t[phase == ph][0] - 0.5, t[phase == ph][-1] + 0.5, color=colour, alpha=0.12)
         x.set_ylabel(name, fontsize=8)
         x.set_ylim(-1.1, 1.1)
+        x.set_xlim(0.5, len(phase) + 0.5)
     ax[-1].set_xlabel("policy step (0.2 s); yellow: free motion, red: search after contact, green: insertion")
-    fig.suptitle(title, fontsize=10)
+    fig.suptitle(title + "\nimages: the task ROI, and in red the gradient saliency of the lateral F_d", fontsize=10)
     fig.tight_layout()
     fig.savefig(out, dpi=110)
     plt.close(fig)

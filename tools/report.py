@@ -159,19 +159,34 @@ def cell(row, k, f="{:.2f}"):
     return "-" if v is None else f"{f.format(v[0])} +- {f.format(v[1])}"
 
 
+def saliency(act, obs):
+    """Where in the image the lateral action looks (Fig. 16's "important regions of the image"): the gradient
+    of the deterministic F_d x and y with respect to the image's pixels, |dF_x/dI| + |dF_y/dI| (80, 80),
+    as Simonyan et al. (2014) map a classifier's saliency. Zeros for a policy without an image."""
+    if act.encoder.image is None:
+        return np.zeros(obs["image"].shape, np.float32)
+    o = {k: torch.as_tensor(v[None]) for k, v in obs.items()}
+    o["image"] = o["image"].float().requires_grad_(True)            # the encoder divides by 255 itself
+    a = act.actor(act.encoder(o), deterministic=True, with_logp=False)[0][0]
+    grads = [torch.autograd.grad(a[i], o["image"], retain_graph=True)[0][0].abs() for i in (0, 1)]
+    return (grads[0] + grads[1]).numpy()
+
+
 def record_episode(run, error_mm=10.0, seed=0):
     """One evaluation episode of a run's policy, recorded per step for Fig. 16 (figures.plot_behaviour):
-    the image features, X - X_g, the wrench, the action and the phase (0 free motion, 1 search after
-    contact, 2 insertion). Returns (record, success)."""
+    the image and its saliency, the image features, X - X_g, the wrench, the action and the phase (0 free
+    motion, 1 search after contact, 2 insertion). Returns (record, success)."""
     cfg = run["cfg"]
     act = legacy.load_policy(os.path.join(run["dir"], "policy.pt"), cfg["task"])
-    rec = {k: [] for k in ("image_features", "goal_offset", "f_world", "action", "phase")}
+    rec = {k: [] for k in ("image", "saliency", "image_features", "goal_offset", "f_world", "action", "phase")}
 
-    def policy_step(obs):                       # the policy, recording its image features and actions
+    def policy_step(obs):                       # the policy, recording what it sees, where it looks and what it does
         with torch.no_grad():
             img = torch.as_tensor(obs["image"][None])
             rec["image_features"].append(act.encoder.image(img)[0].numpy() if act.encoder.image is not None
                                          else np.zeros(6))
+        rec["image"].append(obs["image"].copy())
+        rec["saliency"].append(saliency(act, obs))
         rec["action"].append(act(obs))
         return rec["action"][-1]
 
