@@ -7,21 +7,9 @@ base policy: F_d alone moves the tool) and `--obs v` (vision only).
 
     python tacrl.py --task peg --eval two-step --error-mm 20 --episodes 20
 """
-import cv2
 import numpy as np
 
 import sim
-
-
-def hole_blob(img, dark=20):
-    """The hole in the peg board's ROI image: the largest blob darker than `dark` (the hole is black,
-    the board dark gray). -> (u, v, r) in pixels (centroid and the radius of a disc of equal area),
-    or None when no hole is in view."""
-    n, _, stats, cents = cv2.connectedComponentsWithStats((img < dark).astype(np.uint8))
-    if n < 2:
-        return None
-    i = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
-    return cents[i][0], cents[i][1], np.sqrt(stats[i, cv2.CC_STAT_AREA] / np.pi)
 
 
 def blob_features(b, k):
@@ -81,7 +69,7 @@ class TwoStep:
         for i in range(episodes):       # each episode's sensor noise seeded too: the fit is the same in every process
             obs, info = env.reset(seed=seed * 100003 + i, options={"error": rng.uniform(-1, 1, 4) * scale})
             for k in range(self.SERVO):
-                b = hole_blob(obs["image"])
+                b = sim.hole_blob(obs["image"])
                 if b is not None:
                     feats.append(blob_features(b, k))
                     offsets.append(info["goal_offset"][:2])           # X - X_g, the truth, x and y
@@ -116,7 +104,7 @@ class TwoStep:
         z = float(obs["pose_hist"][-1, 2])               # tip depth along X^_g's z (down), m
         fz = -float(obs["wrench_hist"][-1, 2])           # upward contact force, N (tool z points down)
         if self.phase == "servo":
-            b = hole_blob(obs["image"])
+            b = sim.hole_blob(obs["image"])
             if b is not None:
                 self.estimates.append(blob_features(b, self.k) @ self.coef - self._displacement(obs))
                 self.lateral = np.mean(self.estimates, 0) / w

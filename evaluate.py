@@ -39,7 +39,8 @@ def eval_env(task, act, context="train", roi="task", clearance_mm=0.1, e_r_mm=0.
     """The env to evaluate `act` in; a TrainedPolicy's at the Ex_r, ROI and X_i it was trained for, with its guidance."""
     m = act.meta if isinstance(act, policy.TrainedPolicy) else {}
     return sim.AssemblyEnv(task, context, e_r=e_r_mm / 1000, ex_r=m.get("ex_r"), roi=roi, clearance=clearance_mm / 1000,
-                           gui=gui, base_policy=not m.get("vanilla", False), e_r_max=m.get("e_r_max"))
+                           gui=gui, base_policy=not m.get("vanilla", False), e_r_max=m.get("e_r_max"),
+                           keypoint=m.get("obs") == "ts-ptk")
 
 
 def evaluate(env, act, episodes, seed, video=None, log=print):

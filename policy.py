@@ -41,7 +41,7 @@ import torch
 import torch.nn as nn
 import torch.nn.functional as F
 
-OBS_KINDS = ("pt", "ts-pt", "ts-ptv", "v")
+OBS_KINDS = ("pt", "ts-pt", "ts-ptv", "v", "ts-ptk")   # ts-ptk: keypoint RL (Table 1), the hole as a keypoint
 FEAT = 6                      # features per modality
 LOG_STD_MIN, LOG_STD_MAX = -5.0, 2.0
 
@@ -103,12 +103,15 @@ class Encoder(nn.Module):
         elif kind != "v":
             self.series = SeriesEncoder()
         self.image = ImageEncoder(img) if kind in ("ts-ptv", "v") else None
-        self.out_dim = {"ts-ptv": 3 * FEAT, "v": FEAT}.get(kind, 2 * FEAT)
+        # ts-ptk (keypoint RL): obs['keypoint'] (B, 4), the hole found in the image by a detector, in place of the CNN
+        self.keypoint = mlp(4, FEAT, (32,)) if kind == "ts-ptk" else None
+        self.out_dim = {"ts-ptv": 3 * FEAT, "ts-ptk": 3 * FEAT, "v": FEAT}.get(kind, 2 * FEAT)
         # norm 'joint': one LayerNorm over the fused vector; 'modality': one per modality's features before
         # they are joined (SERL and SAC-AE end each modality's encoder in LayerNorm + tanh), so that the CNN's
         # 6 and the LSTM's 12 features enter at the same scale
         self.norm = nn.LayerNorm(self.out_dim) if norm == "joint" else nn.ModuleList(
-            [nn.LayerNorm(n) for n in ([2 * FEAT] if kind != "v" else []) + ([FEAT] if self.image is not None else [])])
+            [nn.LayerNorm(n) for n in ([2 * FEAT] if kind != "v" else []) + ([FEAT] if self.out_dim == 3 * FEAT or
+                                                                              kind == "v" else [])])
 
     def forward(self, obs):
         z = []
@@ -121,6 +124,8 @@ class Encoder(nn.Module):
             z = [self.series(torch.cat([pose, wrench], 2))]     # (B, 12): pose and touch features
         if self.image is not None:
             z.append(self.image(obs["image"]))
+        if self.keypoint is not None:
+            z.append(self.keypoint(obs["keypoint"]))
         if self.norm_kind != "joint":
             return torch.tanh(torch.cat([ln(x) for ln, x in zip(self.norm, z)], 1))
         return torch.tanh(self.norm(torch.cat(z, 1)))       # the fusion vector, (B, 18) for ts-ptv

@@ -19,6 +19,7 @@ reaches the observation: only the reward and the success check use it. Units: m,
 
 Watch the hand-designed policy alone: `python tacrl.py --task peg --eval initial --error-mm 0 --gui`.
 """
+import cv2
 import numpy as np
 
 import control as ctl
@@ -135,6 +136,30 @@ def check_action(action, n=6):
     return a
 
 
+def hole_blob(img, dark=20):
+    """The hole in the peg board's ROI image: the largest blob darker than `dark` (the hole is black,
+    the board dark gray). -> (u, v, r) in pixels (centroid and the radius of a disc of equal area),
+    or None when no hole is in view. The two-step baseline servoes on it; keypoint RL observes it."""
+    n, _, stats, cents = cv2.connectedComponentsWithStats((img < dark).astype(np.uint8))
+    if n < 2:
+        return None
+    i = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
+    return cents[i][0], cents[i][1], np.sqrt(stats[i, cv2.CC_STAT_AREA] / np.pi)
+
+
+def hole_keypoint(img):
+    """Keypoint RL's vision (Table 1's fourth baseline): the hole as a keypoint found by a classical detector
+    (hole_blob), (4,) float32 [u, v, r, found]: the centroid in [-0.5, 0.5] of the image's width, the radius
+    over it, and 1; zeros when no hole is in view. It models a keypoint detector that finds the hole's
+    centre wherever it is in view and nothing else of the scene (the peg board's hole; the gear's shaft
+    is not dark and is never found)."""
+    b = hole_blob(img)
+    if b is None:
+        return np.zeros(4, np.float32)
+    u, v, r = b
+    return np.array([u / img.shape[1] - 0.5, v / img.shape[0] - 0.5, r / img.shape[1], 1.0], np.float32)
+
+
 class AssemblyEnv(gymnasium.Env if gymnasium else object):
     """Residual-RL assembly env (Algorithm 1's 'interact with environment').
 
@@ -153,14 +178,15 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
 
     obs = {'image': (80, 80) uint8, 'pose_hist': (32, 6) float32 [x y z (m) rx ry rz (rad)] of the
     tip relative to X^_g in X^_g's frame, newest last, 'wrench_hist': (32, 6) float32 [F (N), T (N m)]
-    in the tool frame at the tip, newest last}.
+    in the tool frame at the tip, newest last}, and with keypoint=True 'keypoint': (4,) float32, the hole
+    found in the image (hole_keypoint; keypoint RL's vision).
     action (6,) in [-1, 1] -> F_d = action * F_max/2 per axis: +-5 N, +-0.5 N m.
     """
     metadata = {"render_modes": ["rgb_array"], "render_fps": POLICY_HZ}
 
     def __init__(self, task="peg", context="train", e_r=0.0, ex_r=None, roi="task", clearance=1e-4,
                  gui=False, image=True, base_policy=True, e_r_max=None, render_mode=None, ft_noise=True,
-                 image_noise=True):
+                 image_noise=True, keypoint=False):
         if task not in ("peg", "gear"):
             raise ValueError(f"unknown task {task!r} (peg, gear)")
         if context not in CONTEXTS:
@@ -169,13 +195,15 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
             raise ValueError(f"unknown roi {roi!r} (task, {', '.join(ROI_PRESETS)})")
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"unknown render_mode {render_mode!r} (None, 'rgb_array')")
-        self.task, self.context, self.roi_name, self.image_on = task, context, roi, image
+        self.task, self.context, self.roi_name, self.image_on, self.keypoint = task, context, roi, image, keypoint
         self.base_policy, self.render_mode = base_policy, render_mode
         if gymnasium is not None:
             self.observation_space = spaces.Dict({
                 "image": spaces.Box(0, 255, (IMG, IMG), np.uint8),
                 "pose_hist": spaces.Box(np.tile(-POSE_BOUND, (HIST, 1)), np.tile(POSE_BOUND, (HIST, 1)), dtype=np.float32),
-                "wrench_hist": spaces.Box(np.tile(-FT_RANGE, (HIST, 1)), np.tile(FT_RANGE, (HIST, 1)), dtype=np.float32)})
+                "wrench_hist": spaces.Box(np.tile(-FT_RANGE, (HIST, 1)), np.tile(FT_RANGE, (HIST, 1)), dtype=np.float32),
+                **({"keypoint": spaces.Box(np.float32([-0.5, -0.5, 0, 0]), np.float32([0.5, 0.5, 1, 1]), dtype=np.float32)}
+                   if keypoint else {})})
             self.action_space = spaces.Box(-1.0, 1.0, (6,), np.float32)
         self.world = World(task, clearance, gui, ft_noise, image_noise, CONTEXTS[context])
         self.e_r_max = max(E_R_FINAL, e_r, e_r_max or 0.0)
@@ -255,7 +283,8 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
 
     def _obs(self):
         img = self.world.render_roi(self.roi) if self.image_on else np.zeros((IMG, IMG), np.uint8)
-        return {"image": img, "pose_hist": self.pose_hist.copy(), "wrench_hist": self.wrench_hist.copy()}
+        obs = {"image": img, "pose_hist": self.pose_hist.copy(), "wrench_hist": self.wrench_hist.copy()}
+        return {**obs, "keypoint": hole_keypoint(img)} if self.keypoint else obs
 
     def _info(self, x, success):
         depth = float(self.x_i[0][2] - self.approach - x[0][2])   # tip below the part's top (hole or shaft), m

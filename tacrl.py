@@ -70,7 +70,8 @@ class Config:
     train_episodes: int = train_opt(300, "max-episodes of Algorithm 1: the most a run trains", bounds=(1, None))
     stop_held: int = train_opt(30, "stop when learned: after this many episodes at the final range, every 10 the greedy "
                                    "policy tries 20 there; 19 wins twice in a row stop the run (0: never)", bounds=(0, None))
-    obs: str = train_opt("ts-ptv", "observations (Fig. 9); v: the visual baseline", policy.OBS_KINDS)
+    obs: str = train_opt("ts-ptv", "observations (Fig. 9); v: the visual baseline; ts-ptk: keypoint RL (the hole found "
+                                   "in the image by a detector, with the pose and wrench histories; peg)", policy.OBS_KINDS)
     curriculum: str = train_opt("adaptive", "error curriculum (Eq. 16, Fig. 10); ex10: Fig. 9's", curriculum.KINDS)
     vanilla: bool = train_opt(False, "the vanilla baseline, without a base policy: no trajectory, no spring, no "
                                      "stiffness from the estimated poses; F_d alone moves the tool")
@@ -130,6 +131,7 @@ def train(cfg, log=lambda msg: print(msg, flush=True)):
     # Lines 1-5, initialize the learning architecture: the env holds the hand-designed part of the skill (2: tau(t)
     # and K, Eq. 8-9, 14), the error range E_r (3), the ROI for E_r (4: Eq. 11, at the largest) and the reward (5)
     env = sim.AssemblyEnv(cfg.task, cfg.context, roi=cfg.roi, clearance=cfg.clearance_mm / 1000, gui=cfg.gui,
+                          keypoint=cfg.obs == "ts-ptk",
                           base_policy=not cfg.vanilla, e_r_max=cfg.error_mm / 1000)
     env.np_random = np.random.default_rng(cfg.seed)
     curr = curriculum.Curriculum(cfg.curriculum, final=cfg.error_mm / 1000)     # line 6: Eq. 16's parameters
@@ -223,8 +225,10 @@ def make_sac(cfg, device=None):
 
 
 def obs_shapes(cfg):
-    """What the replay buffer keeps of an observation (the critics' 'state' only where they read it)."""
-    return {"image": (sim.IMG, sim.IMG), "pose_hist": (sim.HIST, 6), "wrench_hist": (sim.HIST, 6),
+    """What the replay buffer keeps of an observation (the critics' 'state' only where they read it; keypoint RL's
+    keypoint, not the image it was found in)."""
+    return {**({"keypoint": (4,)} if cfg.obs == "ts-ptk" else {"image": (sim.IMG, sim.IMG)}),
+            "pose_hist": (sim.HIST, 6), "wrench_hist": (sim.HIST, 6),
             **({"state": (STATE_DIM,)} if cfg.critic == "privileged" or cfg.aux_offset else {}),
             **({"extra": (EXTRA_DIM,)} if cfg.critic_extra else {})}
 
@@ -265,7 +269,8 @@ class StopRule:
 def validate(cfg, sac, curr):
     """Greedy successes at the final range, in a new env, on seeds apart from training's and evaluation's."""
     with sim.AssemblyEnv(cfg.task, cfg.context, e_r=curr.final, ex_r=curr.ranges()[1], roi=cfg.roi,
-                         e_r_max=cfg.error_mm / 1000, clearance=cfg.clearance_mm / 1000, base_policy=not cfg.vanilla) as env:
+                         e_r_max=cfg.error_mm / 1000, clearance=cfg.clearance_mm / 1000, base_policy=not cfg.vanilla,
+                         keypoint=cfg.obs == "ts-ptk") as env:
         row = evaluate.evaluate(env, lambda obs: sac.act(obs, deterministic=True), VAL_EPISODES, VAL_SEED + cfg.seed,
                                 log=lambda *_: None)
     return round(row["success_rate"] * VAL_EPISODES)
@@ -393,6 +398,8 @@ def check(cfg):
             (cfg.eval and cfg.eval not in baselines.NAMES and not os.path.isfile(cfg.eval),
              f"--eval must be {', '.join(baselines.NAMES)} or an existing policy.pt file, not {cfg.eval!r}"),
             (cfg.eval == "two-step" and cfg.task != "peg", "--eval two-step is the peg-in-hole baseline (Table 1)"),
+            (cfg.obs == "ts-ptk" and cfg.task != "peg", "--obs ts-ptk (keypoint RL) finds the peg board's hole; the "
+                                                        "gear's shaft is no keypoint it finds (Table 1 is the peg's)"),
             (cfg.critic != "multimodal" and (cfg.critic_extra, cfg.next_encoder, cfg.actor_encoder, cfg.aux_reward,
                                              cfg.aux_offset) != (False, "target", "shared", 0.0, 0.0),
              "--critic-extra, --next-encoder, --actor-encoder, --aux-reward and --aux-offset change the paper's critics: "

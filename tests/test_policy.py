@@ -18,19 +18,24 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 def fake_obs(rng, n=None, kinds=("image", "pose_hist", "wrench_hist")):
     lead = () if n is None else (n,)
     o = {"image": rng.integers(0, 256, lead + (80, 80), dtype=np.uint8),
+         "keypoint": rng.uniform(-0.5, 0.5, lead + (4,)).astype(np.float32),
          "pose_hist": rng.normal(0, 0.01, lead + (32, 6)).astype(np.float32),
          "wrench_hist": rng.normal(0, 1, lead + (32, 6)).astype(np.float32)}
     return {k: o[k] for k in kinds}
 
 
-@pytest.mark.parametrize("kind,dim", [("ts-ptv", 18), ("ts-pt", 12), ("pt", 12), ("v", 6)])
-def test_encoder_fusion_sizes_and_modalities(kind, dim):
-    enc = policy.Encoder(kind)
-    o = {k: torch.as_tensor(v) for k, v in fake_obs(np.random.default_rng(0), 5).items()}
+@pytest.mark.parametrize("kind,dim,norm", [("ts-ptv", 18, "joint"), ("ts-pt", 12, "joint"), ("pt", 12, "joint"),
+                                           ("v", 6, "joint"), ("ts-ptk", 18, "joint"), ("ts-ptk", 18, "modality"),
+                                           ("ts-ptv", 18, "modality")])
+def test_encoder_fusion_sizes_and_modalities(kind, dim, norm):
+    enc = policy.Encoder(kind, norm=norm)
+    o = {k: torch.as_tensor(v) for k, v in fake_obs(np.random.default_rng(0), 5, ("image", "keypoint", "pose_hist",
+                                                                                     "wrench_hist")).items()}
     z = enc(o)
     assert z.shape == (5, dim) and enc.out_dim == dim
     # each modality the variant names reaches the fused vector, and no other does
-    for key, used in (("image", kind in ("ts-ptv", "v")), ("pose_hist", kind != "v"), ("wrench_hist", kind != "v")):
+    for key, used in (("image", kind in ("ts-ptv", "v")), ("keypoint", kind == "ts-ptk"), ("pose_hist", kind != "v"),
+                      ("wrench_hist", kind != "v")):
         o2 = dict(o)
         o2[key] = torch.flip(o[key], [0])          # other samples' data in this modality
         assert (not torch.allclose(enc(o2), z)) == used, key

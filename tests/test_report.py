@@ -15,6 +15,7 @@ import tacrl
     ({}, {"methods": "ours", "roi": "task attention (Eq. 11)", "curriculum": "curriculum adaptive, 20 mm"}),
     ({"vanilla": True}, {"methods": "vanilla"}),
     ({"obs": "v"}, {"methods": "visual"}),
+    ({"obs": "ts-ptk"}, {"methods": "keypoint"}),
     ({"obs": "v", "critic": "multimodal"}, {"methods": "visual (critic multimodal)"}),   # the paper's critics
     ({"obs": "pt", "curriculum": "ex10"}, {"obs": "P-T"}),
     ({"curriculum": "ex10"}, {"obs": "Time-series P-T-V"}),

@@ -20,7 +20,7 @@ def test_every_row_of_an_experiment_trains_the_same_budget_in_a_run_dir_of_its_o
         budgets = {tuple(tacrl.parse(tacrl.Config, r, "").get(k) for k in ("train_episodes", "stop_held")) for r in rows}
         assert len(budgets) == 1, name
     table1 = [j.run_dir for j in jobs if j.run_dir.startswith(os.path.join("runs", "table1"))]
-    assert len(table1) == 9 and any("vanilla" in d for d in table1) and any("-v-" in d for d in table1)
+    assert len(table1) == 12 and all(any(k in d for d in table1) for k in ("vanilla", "-v-", "-ts-ptk-"))
 
 
 def test_a_sweep_runs_here_skips_what_finished_and_resumes_what_stopped(tmp_path, capsys):

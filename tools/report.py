@@ -43,6 +43,7 @@ from tacrl import ArgError  # noqa: E402
 VISUAL_PAPER_CRITICS = "visual (critic multimodal)"     # our visual row's critics are privileged (README)
 PAPER_TABLE1 = {"two-step": "0.533, 19.00 +- 5.75, 13.21 / 13.22 / 9.78",
                 "vanilla": "did not learn", "visual": "did not learn", VISUAL_PAPER_CRITICS: "did not learn",
+                "keypoint": "0.96, 4.27 +- 2.97, -",
                 "ours": "1.00, 2.41 +- 1.93, 12.14 / 6.92 / 3.23"}
 # Table 2 (real robot), success rate at 5/10/15/20 mm: the rows that the paper's layout pins down
 PAPER_TABLE2 = {("peg", "train"): "1.00 / 1.00 / 1.00 / 0.80", ("peg", "loc-1"): "1.00 / 1.00 / 0.90 / 0.75",
@@ -81,12 +82,14 @@ def load_run(d):
 
 
 def method_of(cfg):
-    """'ours', 'vanilla', 'visual' or the ablation variant a run trained, plus any learning setting
+    """'ours', 'vanilla', 'visual', 'keypoint' or the ablation variant a run trained, plus any learning setting
     that differs from the defaults (so that runs are grouped only with their like)."""
     if cfg.get("vanilla"):
         name = "vanilla"
     elif cfg["obs"] == "v":
         name = "visual"
+    elif cfg["obs"] == "ts-ptk" and (cfg["curriculum"], cfg["roi"], cfg["error_mm"]) == ("adaptive", "task", 20.0):
+        name = "keypoint"
     elif (cfg["obs"], cfg["curriculum"], cfg["roi"], cfg["error_mm"]) == ("ts-ptv", "adaptive", "task", 20.0):
         name = "ours"
     else:
@@ -120,7 +123,7 @@ def families(cfg):
     ours_but = lambda **kw: all(cfg[k] == v for k, v in {"obs": "ts-ptv", "curriculum": "adaptive", "roi": "task",  # noqa: E731
                                                          "error_mm": 20.0, "vanilla": False, **kw}.items())
     fam = {}
-    if name in ("ours", "vanilla", "visual"):
+    if name in ("ours", "vanilla", "visual", "keypoint"):
         fam["methods"] = name
     if cfg["curriculum"] == "ex10" and cfg["roi"] == "task" and not cfg.get("vanilla"):
         fam["obs"] = OBS_NAMES.get(cfg["obs"], cfg["obs"])
@@ -303,7 +306,7 @@ def write_report(patterns, out_dir="docs", log=print):
         with open(path, "w") as f:
             json.dump(ts_row, f, indent=2)
     table1 = [("two-step", [ts_row], "-")]
-    for name in ("vanilla", "visual", VISUAL_PAPER_CRITICS, "ours"):
+    for name in ("vanilla", "visual", VISUAL_PAPER_CRITICS, "keypoint", "ours"):
         done = [r for r in runs if r["cfg"]["task"] == "peg" and method_of(r["cfg"]) == name and r["eval"]]
         rows = [row for r in done for row in r["eval"]["rows"] if row["error_mm"] == 20.0]
         table1.append((name, rows, ", ".join(sorted({str(len(r["m"]["episode"])) for r in done}))))

@@ -34,7 +34,7 @@ from tacrl import ArgError  # noqa: E402
 # as the paper compares them. The seeds are added to each.
 BUDGET = lambda n: ["--train-episodes", str(n), "--stop-held", "0"]   # noqa: E731
 EXPERIMENTS = {
-    "table1": [[*row, *BUDGET(200)] for row in ([], ["--vanilla"], ["--obs", "v"])],   # Table 1 (peg, 200 episodes)
+    "table1": [[*row, *BUDGET(200)] for row in ([], ["--vanilla"], ["--obs", "v"], ["--obs", "ts-ptk"])],  # peg, 200 ep.
     "gear-obs": [["--task", "gear", "--curriculum", "ex10", "--obs", o, *BUDGET(200)] for o in ("pt", "ts-pt", "ts-ptv")],
     "gear-curriculum": [["--task", "gear", "--curriculum", c, "--error-mm", mm, *BUDGET(300)]       # Fig. 10
                         for c, mms in (("adaptive", ("10", "20", "30")), ("none", ("10", "20", "30")),
