@@ -2,6 +2,7 @@
 processes and as Ray tasks on a local Ray instance (the `ray` extra, which the test extra brings)."""
 import json
 import os
+import sys
 
 import pytest
 
@@ -23,7 +24,7 @@ def test_every_row_of_an_experiment_trains_the_same_budget_in_a_run_dir_of_its_o
     assert len(table1) == 12 and all(any(k in d for d in table1) for k in ("vanilla", "-v-", "-ts-ptk-"))
 
 
-def test_a_sweep_runs_here_skips_what_finished_and_resumes_what_stopped(tmp_path, capsys):
+def test_a_sweep_runs_here_skips_what_finished_resumes_what_stopped_and_the_report_reads_it(tmp_path, capsys):
     root = str(tmp_path / "runs")
     assert tacrl.command("sweep", lambda: sweep.main(["--seeds", "0,1", "--root", root, "--", *TINY])) == 0
     out = capsys.readouterr().out
@@ -32,6 +33,9 @@ def test_a_sweep_runs_here_skips_what_finished_and_resumes_what_stopped(tmp_path
     assert [os.path.basename(d) for d in dirs] == ["peg-ts-ptv-adaptive-e1-s0", "peg-ts-ptv-adaptive-e1-s1"]
     assert all(json.load(open(os.path.join(d, "eval.json")))["train_episodes"] == 2 for d in dirs)
     assert "ep    2/2" in open(os.path.join(dirs[0], "train.log")).read()
+    assert tacrl.command("report", lambda: report.main([f"{root}/*", "--compare", "cmp", "--out", str(tmp_path)])) == 0
+    table = [ln for ln in (tmp_path / "cmp.md").read_text().splitlines() if ln.startswith("|")][2:]
+    assert len(table) == 2 and not any("unfinished" in r for r in table)
     assert tacrl.command("sweep", lambda: sweep.main(["--seeds", "0,1", "--root", root, "--list", "--", *TINY])) == 0
     assert capsys.readouterr().out.split() == ["done", dirs[0], "done", dirs[1]]
     os.remove(os.path.join(dirs[1], "eval.json"))            # as if stopped before its end: resumed, not restarted
@@ -41,20 +45,23 @@ def test_a_sweep_runs_here_skips_what_finished_and_resumes_what_stopped(tmp_path
     assert "holds another run (its lr differ)" in capsys.readouterr().err     # nothing overwritten
 
 
-def test_a_sweep_runs_as_ray_tasks_on_a_local_instance_and_the_report_reads_what_finished(tmp_path):
+def test_a_sweep_runs_as_ray_tasks_on_a_local_instance(tmp_path, monkeypatch):
+    """The plan's commands as Ray tasks, each writing its run dir's log where the driver runs (the same paths on
+    every node); a stand-in command, as the local test runs the real ones."""
     import ray
-    root = str(tmp_path / "runs")
-    jobs = sweep.plan([], [0, 1], root, TINY)
+    jobs = sweep.plan([], [0, 1], str(tmp_path / "runs"), TINY)
+    monkeypatch.setattr(sweep, "command", lambda job, threads: [
+        sys.executable, "-c", f"import os; print('run', {job.run_dir!r}, os.environ['OMP_NUM_THREADS'], os.getcwd())"])
+    monkeypatch.chdir(tmp_path)
     lines = []
     ray.init(num_cpus=2, include_dashboard=False, object_store_memory=100 * 2 ** 20, log_to_driver=False)
     try:
         done = sweep.run_ray(jobs, "local", 1, log=lines.append)
     finally:
         ray.shutdown()
-    assert sorted(code for _, code in done) == [0, 0] and sum("finished (" in x for x in lines) == 2
-    assert tacrl.command("report", lambda: report.main([f"{root}/*", "--compare", "cmp", "--out", str(tmp_path)])) == 0
-    table = [ln for ln in (tmp_path / "cmp.md").read_text().splitlines() if ln.startswith("|")][2:]
-    assert len(table) == 2 and not any("unfinished" in r for r in table)
+    assert [code for _, code in done] == [0, 0] and sum("finished (" in x for x in lines) == 2
+    for j in jobs:
+        assert open(os.path.join(j.run_dir, "train.log")).read().split() == ["run", j.run_dir, "1", str(tmp_path)]
 
 
 @pytest.mark.parametrize("argv, message", [
