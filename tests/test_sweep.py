@@ -35,7 +35,7 @@ def test_a_sweep_runs_here_skips_what_finished_resumes_what_stopped_and_the_repo
     assert "ep    2/2" in open(os.path.join(dirs[0], "train.log")).read()
     assert tacrl.command("report", lambda: report.main([f"{root}/*", "--compare", "cmp", "--out", str(tmp_path)])) == 0
     table = [ln for ln in (tmp_path / "cmp.md").read_text().splitlines() if ln.startswith("|")][2:]
-    assert len(table) == 2 and not any("unfinished" in r for r in table)
+    assert len(table) == 2 and not any("unfinished" in r for r in table) and "wrote" in capsys.readouterr().out
     assert tacrl.command("sweep", lambda: sweep.main(["--seeds", "0,1", "--root", root, "--list", "--", *TINY])) == 0
     assert capsys.readouterr().out.split() == ["done", dirs[0], "done", dirs[1]]
     os.remove(os.path.join(dirs[1], "eval.json"))            # as if stopped before its end: resumed, not restarted
