@@ -579,15 +579,16 @@ def write_compare(patterns, out_dir, name, log=print):
           "| settings | seed | episodes | E_r last / max (mm) | first at final | eval SR " +
           " / ".join(f"{mm:g}" for mm in LEVELS) + " mm | minutes |", "|---" * 7 + "|"]
     groups = {}
-    for r in sorted(runs, key=lambda r: (method_of(r["cfg"]), r["cfg"]["seed"])):
+    setting = lambda cfg: method_of(cfg) + (" (privileged critics)" if cfg["critic"] == "privileged" else "")  # noqa: E731
+    for r in sorted(runs, key=lambda r: (setting(r["cfg"]), r["cfg"]["seed"])):
         m, cfg = r["m"], r["cfg"]
         at_final = np.flatnonzero(m["e_r_mm"] >= cfg["error_mm"] - 1e-6)
         ev = r["eval"]
         sr = " / ".join(f"{x['success_rate']:.2f}" for x in ev["rows"]) if ev else "unfinished"
         minutes = ev["train_minutes"] if ev else m["elapsed_s"][-1] / 60
-        md.append(f"| {method_of(cfg)} | {cfg['seed']} | {len(m['episode'])} | {m['e_r_mm'][-1]:.1f} / "
+        md.append(f"| {setting(cfg)} | {cfg['seed']} | {len(m['episode'])} | {m['e_r_mm'][-1]:.1f} / "
                   f"{m['e_r_mm'].max():.1f} | {int(m['episode'][at_final[0]]) if len(at_final) else '-'} | {sr} | {minutes:.1f} |")
-        groups.setdefault(method_of(cfg), []).append(r)
+        groups.setdefault(setting(cfg), []).append(r)
     figures.plot_groups(groups, ("e_r_mm", "sr15"), os.path.join(out_dir, f"{name}.png"), f"{name}: curves by setting")
     md += ["", f"![{name}]({name}.png)", "", "*Curves by setting: mean over seeds (band: 95 % bootstrap over seeds).*"]
     with open(os.path.join(out_dir, f"{name}.md"), "w") as f:
