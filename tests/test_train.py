@@ -189,7 +189,7 @@ def test_report_is_written_from_an_archive(tiny_run, tmp_path):
     row = {"success_rate": 0.5, "completion_time_s": [10.0, 1.0], "contact_force_x_N": [1.0, 0.0],
            "contact_force_y_N": [1.0, 0.0], "contact_force_z_N": [1.0, 0.0], "cumulative_reward": [1.0, 0.0],
            "episodes": 20}      # the two-step row's cache: evaluating the baseline takes a minute
-    (docs / "two-step-peg-20mm.json").write_text(json.dumps(row))
+    (docs / "two-step-peg-20mm.json").write_text(json.dumps({"world": sim.WORLD, "row": row}))
     (docs / "fig-peg-obs.png").write_bytes(b"an earlier report's figure, of runs this one has not got")
     assert tacrl.command("report", lambda: report.main([str(results / "*"), "--out", str(docs)])) == 0
     text = (docs / "RESULTS.md").read_text()
@@ -197,6 +197,13 @@ def test_report_is_written_from_an_archive(tiny_run, tmp_path):
     assert "| two-step | - | 0.50 | 10.00 +- 1.00 |" in text
     assert "(at 1 mm)" in text               # its levels are named: not the usual 5/10/15/20
     assert (docs / "fig-peg-runs.png").stat().st_size > 0 and not (docs / "fig-peg-obs.png").exists()
+    assert f"all made in world {sim.WORLD}" in text
+    other = results / "other-world"                      # a run of another world: refused, nothing written
+    shutil.copytree(results / "run", other)
+    (other / "eval.json").write_text(json.dumps({**json.loads((other / "eval.json").read_text()), "world": None}))
+    (docs / "RESULTS.md").unlink()
+    assert tacrl.command("report", lambda: report.main([str(results / "*"), "--out", str(docs)])) == 2
+    assert not (docs / "RESULTS.md").exists()
 
 
 def test_table2_rows_are_evaluated_once_per_world_and_context(tiny_run, tmp_path, monkeypatch):
@@ -213,6 +220,12 @@ def test_table2_rows_are_evaluated_once_per_world_and_context(tiny_run, tmp_path
     cache.write_text(json.dumps({"world": sim.WORLD - 1, "rows": loc}))     # another world's rows: evaluated again
     report.eval_cached(run, "loc-2", levels=(1.0,), episodes=1, log=said.append)
     assert len(said) == 2 and json.loads(cache.read_text())["world"] == sim.WORLD
+    old = {**run, "eval": {**run["eval"], "world": None}}          # a run of an older world: its own cache, or nothing
+    cache.write_text(json.dumps(loc))                              # a cache of before the world key: the unversioned world's
+    assert report.eval_cached(old, "loc-2", levels=(1.0,), episodes=1, log=said.append) == loc and len(said) == 2
+    cache.unlink()
+    with pytest.raises(report.ArgError, match="made in world unversioned"):
+        report.eval_cached(old, "loc-2", levels=(1.0,), episodes=1, log=said.append)
 
 
 def test_compare_lists_finished_and_unfinished_runs_and_refuses_two_worlds(tiny_run, tmp_path):

@@ -49,6 +49,7 @@ PAPER_TABLE1 = {"two-step": "0.533, 19.00 +- 5.75, 13.21 / 13.22 / 9.78",
 PAPER_TABLE2 = {("peg", "train"): "1.00 / 1.00 / 1.00 / 0.80", ("peg", "loc-1"): "1.00 / 1.00 / 0.90 / 0.75",
                 ("gear", "train"): "1.00 / 1.00 / 0.95 / 0.70"}
 UNSEEN = ("loc-1", "loc-2")     # our stand-ins for Table 2's 'unseen 1' and 'unseen 2': the real board at two other places
+FIG12_CONTEXTS = ("loc-1", "bg-objects")   # Fig. 12's: another location, another background (objects beside the board)
 # Fig. 12 is the simulation's (Sec. 5.1.4, the gear ablations), scored by the average cumulative reward
 PAPER_FIG12 = ("The paper (simulation, the gear's ROI ablation, Fig. 12, average cumulative reward): task attention "
                "61.19 -> 54.73 (new background), 69.23 -> 46.46 (new location); full view 61.12 -> -23.06 and 59.51 -> -14.65.")
@@ -137,18 +138,26 @@ def families(cfg):
 
 
 def eval_cached(run, context, levels=LEVELS, episodes=20, log=print):
-    """Table-2 rows of a run's policy in `context`, in this world, evaluated once and kept in the run dir with
-    the world's version (the training context's come from eval.json when it holds the same levels and world)."""
+    """Table-2 rows of a run's policy in `context`, of the run's own world: the training context's from eval.json
+    when it holds the same levels, else from the run dir's cache of that world, else evaluated now and cached with
+    the world's version, which only this code's world can do (ArgError for a run of an older world: its rows
+    would be another world's). A cache of before the world key (a list of rows) is of the unversioned world."""
     cfg = run["cfg"]
     act = legacy.load_policy(os.path.join(run["dir"], "policy.pt"), cfg["task"])
     plan = [(mm, round(sim.exploration_range(mm / 1000, act.meta["ex_r"]) * 1000, 3)) for mm in levels]   # (E_r, Ex_r), mm
     tag = "" if tuple(levels) == LEVELS else "-" + "-".join(f"{mm:g}" for mm in levels) + "mm"
     path = os.path.join(run["dir"], f"eval-{context}{tag}.json")
+    run_world = run["eval"].get("world") if run["eval"] else sim.WORLD
     cached = read_json(path) if os.path.exists(path) else {}
-    for world, rows in ([(run["eval"].get("world"), run["eval"]["rows"])] if context == "train" and run["eval"] else []) + \
-            ([(cached.get("world"), cached.get("rows"))] if isinstance(cached, dict) else []):   # eval.json, then the cache
-        if world == sim.WORLD and [(r["error_mm"], r.get("ex_r_mm")) for r in rows] == plan and rows[0]["episodes"] == episodes:
-            return rows             # (rows of another world, or a cache without its world, are evaluated again)
+    cached = {"world": None, "rows": cached} if isinstance(cached, list) else cached
+    for world, rows in ([(run_world, run["eval"]["rows"])] if context == "train" and run["eval"] else []) + \
+            ([(cached.get("world"), cached["rows"])] if isinstance(cached, dict) and cached.get("rows") else []):  # then the cache
+        if world == run_world and [(r["error_mm"], r.get("ex_r_mm")) for r in rows] == plan and rows[0]["episodes"] == episodes:
+            return rows
+    if run_world != sim.WORLD:
+        raise ArgError(f"{run['dir']} was made in world {run_world or 'unversioned'}: its rows in {context} at "
+                       f"{', '.join(f'{mm:g}' for mm in levels)} mm were not kept, and this code (world {sim.WORLD}) "
+                       "would make another world's")
     log(f"  evaluating {run['dir']} in {context} at {', '.join(f'{mm:g}' for mm in levels)} mm")
     with evaluate.eval_env(cfg["task"], act, context, cfg["roi"], cfg["clearance_mm"]) as env:
         rows = evaluate.evaluate_levels(env, act, levels, episodes, evaluate.EVAL_SEED + cfg["seed"])
@@ -270,16 +279,28 @@ def archive_runs(patterns, dest=RESULTS_DIR, log=print):
     return [to for _, to, _ in plan]
 
 
+def world_of(runs, patterns):
+    """The one world the finished runs were made in (None: before the world had a version, issue 21's);
+    ArgError where they are of two: their rows cannot share a table."""
+    worlds = {r["eval"].get("world") for r in runs if r["eval"]}
+    if len(worlds) > 1:
+        raise ArgError(f"{patterns!r}: runs of worlds {', '.join(sorted(str(w or 'unversioned') for w in worlds))}; "
+                       "one world per report (archive each world's runs apart)")
+    return worlds.pop() if worlds else sim.WORLD
+
+
 def write_report(patterns, out_dir="docs", log=print):
-    """docs/RESULTS.md and its figures from run directories (glob patterns, comma-separated)."""
+    """docs/RESULTS.md and its figures from run directories (glob patterns, comma-separated), all of one world."""
     tacrl.check_dir_writable(out_dir, "--out")
     runs = [load_run(d) for d in match_runs(patterns)]
+    world = world_of(runs, patterns)
     os.makedirs(out_dir, exist_ok=True)
     for f in os.listdir(out_dir):          # an earlier report's figures, which these runs may not redraw
         if f.startswith("fig-") and f.endswith(".png"):
             os.remove(os.path.join(out_dir, f))
     md = ["# Results", "", f"Regenerated by `python tools/report.py \"{patterns}\"` from {len(runs)} run "
-          "directories. Every number below was measured by running this code on a 2-core CPU machine; "
+          f"directories, all made in {f'world {world}' if world else 'a world older than the versioned ones (before issue 21)'}. "
+          "Every number below was measured by running this code on a 2-core CPU machine; "
           "the paper's numbers stand beside ours. How the world and the method came to be as they are, "
           "and what each change did to the results, is told in [HISTORY.md](HISTORY.md).", "", "## The runs", "",
           "| run | command | method | episodes | minutes (threads) | final E_r (mm) | max E_r (mm) | eval SR 5/10/15/20 mm |",
@@ -296,16 +317,17 @@ def write_report(patterns, out_dir="docs", log=print):
     md += ["", "## Table 1: peg-in-hole at 20 mm error (20 trials, evaluation seeds never used in training)", "",
            "| method | training episodes | SR | CT (s) | peak contact force x / y / z (N) | cumulative reward | "
            "paper: SR, CT, force x/y/z |", "|---|---|---|---|---|---|---|"]
-    path = os.path.join(out_dir, "two-step-peg-20mm.json")
-    if os.path.exists(path):
-        ts_row = read_json(path)
-    else:
+    path = os.path.join(out_dir, "two-step-peg-20mm.json")     # the two-step row, kept with its world
+    cached = read_json(path) if os.path.exists(path) else {}
+    cached = cached if "world" in cached else {"world": None, "row": cached} if cached else {}   # before the world key
+    ts_row = cached.get("row") if cached and cached["world"] == world else None
+    if ts_row is None and world == sim.WORLD:
         log("evaluating the two-step baseline (peg, 20 mm, 20 episodes)")
         with sim.AssemblyEnv("peg", e_r=0.02) as env:
             ts_row = evaluate.evaluate(env, baselines.make("two-step", env), 20, evaluate.EVAL_SEED, log=lambda *_: None)
         with open(path, "w") as f:
-            json.dump(ts_row, f, indent=2)
-    table1 = [("two-step", [ts_row], "-")]
+            json.dump({"world": world, "row": ts_row}, f, indent=2)
+    table1 = [("two-step", [ts_row] if ts_row else [], "-")]
     for name in ("vanilla", "visual", VISUAL_PAPER_CRITICS, "keypoint", "ours"):
         done = [r for r in runs if r["cfg"]["task"] == "peg" and method_of(r["cfg"]) == name and r["eval"]]
         rows = [row for r in done for row in r["eval"]["rows"] if row["error_mm"] == 20.0]
@@ -336,7 +358,12 @@ def write_report(patterns, out_dir="docs", log=print):
             continue
         best = ours[0]                      # the first seed stands for the method in the unseen contexts
         for ctx in ("train",) + UNSEEN:
-            rows = eval_cached(best, ctx, log=log)
+            try:
+                rows = eval_cached(best, ctx, log=log)
+            except ArgError:                # a run of an older world, never evaluated there: no row of today's world
+                md.append(f"| {task} | {ctx} | not evaluated in the run's world, which this code cannot make | | | | "
+                          f"{PAPER_TABLE2.get((task, ctx), '-')} |")
+                continue
             cells = [f"{x['success_rate']:.2f} / {cell(x, 'completion_time_s', '{:.1f}').split(' +-')[0]} / "
                      f"{x['cumulative_reward'][0]:.1f}" for x in rows if x["error_mm"] in LEVELS]
             md.append(f"| {task} | {ctx} | {' | '.join(cells)} | {PAPER_TABLE2.get((task, ctx), '-')} |")
@@ -395,7 +422,7 @@ def write_report(patterns, out_dir="docs", log=print):
             if r is None:
                 continue
             bars[families(r["cfg"])["roi"]] = by_ctx = {}
-            for ctx in ("train",) + UNSEEN:
+            for ctx in ("train",) + FIG12_CONTEXTS:
                 cr = np.array([x["cumulative_reward"][0] for x in eval_cached(r, ctx, log=log)])
                 by_ctx[ctx] = [float(cr.mean()), float(cr.std())]
         if len(bars) == 2:
@@ -404,16 +431,19 @@ def write_report(patterns, out_dir="docs", log=print):
             figs.append((name, f"{task}: mean cumulative reward over 5/10/15/20 mm (20 trials each) in the training "
                                "context and two unseen ones, task-attention ROI against the full view (the paper's "
                                "Fig. 12; bars: spread over the four error ranges)"))
-            figures.plot_views(task, ("task", "full"), ("train",) + UNSEEN, os.path.join(out_dir, f"fig-{task}-views.png"))
+            figures.plot_views(task, ("task", "full"), ("train",) + FIG12_CONTEXTS, os.path.join(out_dir, f"fig-{task}-views.png"))
             figs.append((f"fig-{task}-views.png", f"{task}: what the policy sees at the start of an episode in each "
                                                   "context, through the task-attention ROI and the full view"))
             md += ["", f"## Context generalization, {task} (the paper's Fig. 12)", "",
                    "Mean cumulative reward per episode over 5/10/15/20 mm, 20 trials each.", "",
-                   "| ROI | " + " | ".join(("train",) + UNSEEN) + " |", "|---" * (1 + len(UNSEEN) + 1) + "|"]
+                   "| ROI | " + " | ".join(("train",) + FIG12_CONTEXTS) + " |", "|---" * (1 + len(FIG12_CONTEXTS) + 1) + "|"]
             md += [f"| {roi} | " + " | ".join(f"{v[ctx][0]:.1f}" for ctx in v) + " |" for roi, v in bars.items()]
             md += ["", PAPER_FIG12]
     ours_peg = [r for r in runs if r["cfg"]["task"] == "peg" and method_of(r["cfg"]) == "ours" and r["eval"]]
-    if ours_peg:
+    if ours_peg and world != sim.WORLD:     # an episode recorded now would be this code's world, not the runs'
+        md += ["", f"Fig. 16 (one episode's behaviour) is recorded by this code, of world {sim.WORLD}: not drawn for "
+               "runs of an older world."]
+    elif ours_peg:
         rec, term = record_episode(ours_peg[0], error_mm=10.0)
         figures.plot_behaviour(rec, os.path.join(out_dir, "fig-behaviour.png"),
                                f"one episode, peg, 10 mm error range, success {term}")
@@ -569,11 +599,9 @@ def write_compare(patterns, out_dir, name, log=print):
     two worlds are refused: their numbers cannot share a table."""
     tacrl.check_dir_writable(out_dir, "--out")
     runs = [load_run(d) for d in match_runs(patterns)]
-    worlds = {r["eval"].get("world") if r["eval"] else sim.WORLD for r in runs}   # an unfinished run: of this code's
-    if len(worlds) > 1:
-        raise ArgError(f"{patterns!r}: runs of worlds {sorted(map(str, worlds))}; one world per table")
+    world = world_of(runs, patterns)     # (an unfinished run has no world of its own: it is read as of this one)
     os.makedirs(out_dir, exist_ok=True)
-    md = [f"Made by `python tools/report.py \"{patterns}\" --compare {name}` (world {worlds.pop()}). E_r: where the "
+    md = [f"Made by `python tools/report.py \"{patterns}\" --compare {name}` (world {world}). E_r: where the "
           "curriculum stood at the last episode, the most it reached, and the first episode at the final range; "
           "SR on the held-out evaluation seeds (20 episodes a level); a run without an evaluation did not finish.", "",
           "| settings | seed | episodes | E_r last / max (mm) | first at final | eval SR " +
