@@ -1,12 +1,12 @@
 """tools/sweep.py: the report's experiments as a plan of independent, resumable runs, run as local
 processes and as Ray tasks on a local Ray instance (the `ray` extra, which the test extra brings)."""
-import json
 import os
 import sys
+from dataclasses import asdict
 
 import pytest
 
-import report
+import rundir
 import sweep
 import tacrl
 
@@ -23,31 +23,43 @@ def test_every_row_of_an_experiment_trains_the_same_budget_in_a_run_dir_of_its_o
     table1 = [j.run_dir for j in jobs if j.run_dir.startswith(os.path.join("runs", "table1"))]
     assert len(table1) == 12 and all(any(k in d for d in table1) for k in ("vanilla", "-v-", "-ts-ptk-"))
 
+REAL_COMMAND = sweep.command
 
-def test_a_sweep_runs_here_skips_what_finished_resumes_what_stopped_and_the_report_reads_it(tmp_path, capsys):
+
+def stand_in(job, threads):
+    """A run's command as the sweep builds it, checked as tacrl.py checks it, and a stand-in that runs in a blink
+    (the README's command and the fixtures of test_train run tacrl.py itself)."""
+    cmd = REAL_COMMAND(job, threads)
+    assert cmd[:2] == [sys.executable, os.path.join(sweep.PROJECT, "tacrl.py")] and cmd[-2:] == ["--threads", str(threads)]
+    if job.state == "new":
+        assert tacrl.parse_args(cmd[2:]).run_dir == job.run_dir
+    return [sys.executable, "-c", f"import os; print('ep', {job.state!r}, os.environ['OMP_NUM_THREADS'])"]
+
+
+def test_a_sweep_runs_here_skips_what_finished_and_resumes_what_stopped(tmp_path, capsys, monkeypatch):
     root = str(tmp_path / "runs")
-    assert tacrl.command("sweep", lambda: sweep.main(["--seeds", "0,1", "--root", root, "--", *TINY])) == 0
+    monkeypatch.setattr(sweep, "command", stand_in)
+    dirs = [os.path.join(root, f"peg-ts-ptv-adaptive-e1-s{s}") for s in (0, 1, 2)]
+    for d, state in zip(dirs, ("done", "stopped")):           # s0 finished, s1 stopped: each a run of this plan
+        os.makedirs(d)
+        cfg = tacrl.parse_args([*TINY, "--seed", d[-1], "--run-dir", d])
+        rundir.write_config(d, asdict(cfg))
+        if state == "done":
+            open(os.path.join(d, "eval.json"), "w").write("{}")
+    assert tacrl.command("sweep", lambda: sweep.main(["--seeds", "0,1,2", "--root", root, "--list", "--", *TINY])) == 0
+    assert capsys.readouterr().out.split() == ["done", dirs[0], "resume", dirs[1], "new", dirs[2]]
+    assert tacrl.command("sweep", lambda: sweep.main(["--seeds", "0,1,2", "--root", root, "--", *TINY])) == 0
     out = capsys.readouterr().out
-    assert "2 runs, 0 finished already; 2 to run here" in out and out.count("finished (") == 2
-    dirs = sorted(os.path.join(root, d) for d in os.listdir(root))
-    assert [os.path.basename(d) for d in dirs] == ["peg-ts-ptv-adaptive-e1-s0", "peg-ts-ptv-adaptive-e1-s1"]
-    assert all(json.load(open(os.path.join(d, "eval.json")))["train_episodes"] == 2 for d in dirs)
-    assert "ep    2/2" in open(os.path.join(dirs[0], "train.log")).read()
-    assert tacrl.command("report", lambda: report.main([f"{root}/*", "--compare", "cmp", "--out", str(tmp_path)])) == 0
-    table = [ln for ln in (tmp_path / "cmp.md").read_text().splitlines() if ln.startswith("|")][2:]
-    assert len(table) == 2 and not any("unfinished" in r for r in table) and "wrote" in capsys.readouterr().out
-    assert tacrl.command("sweep", lambda: sweep.main(["--seeds", "0,1", "--root", root, "--list", "--", *TINY])) == 0
-    assert capsys.readouterr().out.split() == ["done", dirs[0], "done", dirs[1]]
-    os.remove(os.path.join(dirs[1], "eval.json"))            # as if stopped before its end: resumed, not restarted
-    jobs = sweep.plan([], [0, 1], root, TINY)
-    assert [j.state for j in jobs] == ["done", "resume"] and jobs[1].argv == ["--resume", dirs[1]]
+    assert "3 runs, 1 finished already; 2 to run here" in out and out.count("finished (") == 2
+    assert [open(os.path.join(d, "train.log")).read().split() for d in dirs[1:]] == [["ep", "resume", "1"],
+                                                                                    ["ep", "new", "1"]]
     assert tacrl.command("sweep", lambda: sweep.main(["--seeds", "0", "--root", root, "--", *TINY, "--lr", "0.001"])) == 2
     assert "holds another run (its lr differ)" in capsys.readouterr().err     # nothing overwritten
 
 
 def test_a_sweep_runs_as_ray_tasks_on_a_local_instance(tmp_path, monkeypatch):
     """The plan's commands as Ray tasks, each writing its run dir's log where the driver runs (the same paths on
-    every node); a stand-in command, as the local test runs the real ones."""
+    every node); stand-in commands, as in the local test."""
     import ray
     jobs = sweep.plan([], [0, 1], str(tmp_path / "runs"), TINY)
     monkeypatch.setattr(sweep, "command", lambda job, threads: [
