@@ -240,7 +240,7 @@ def main(argv=None):
     if a.list or a.dry_run:
         for j in jobs:
             print(f"{j.state:6s}  {j.run_dir}" if a.list else
-                  ("# done: " if j.state == "done" else "") + " ".join(command(j, a.threads)[1:]))
+                  ("# done: " if j.state == "done" else "") + " ".join(["python", *command(j, a.threads)[1:]]))
         return 0
     print(f"{len(jobs)} runs, {len(jobs) - len(todo)} finished already; {len(todo)} to run "
           + (f"as Ray tasks ({a.ray})" if a.ray else "here"), flush=True)
