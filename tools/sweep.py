@@ -16,7 +16,6 @@ report on any node then reads. Each run's output goes to its run dir's train.log
 """
 import os
 import signal
-import subprocess
 import sys
 import time
 from dataclasses import dataclass
@@ -118,46 +117,54 @@ def last_episode(run_dir):
 
 
 class Progress:
-    """A line when a run starts or ends, and one a minute with each running run's episode."""
+    """A line when a run starts (or is queued) and when it ends, and one a minute with each started run's episode."""
 
     def __init__(self, todo, log):
         self.t0 = self.shown = time.time()
-        self.todo, self.log = todo, log
+        self.todo, self.log, self.running = todo, log, []
 
     def started(self, job, verb="started"):
+        self.running.append(job)
         self.log(f"{verb} {job.run_dir} ({job.state}), its log {job.run_dir}/{rundir.LOG}")
 
     def ended(self, job, code, left):
+        self.running.remove(job)
         self.log(f"[{rundir.fmt_time(time.time() - self.t0)}] {job.run_dir}: "
                  f"{'finished' if code == 0 else f'failed, exit code {code}'} ({left} of {self.todo} left)")
 
-    def tick(self, running):
+    def tick(self):
         if time.time() - self.shown > 60:
             self.shown = time.time()
             self.log(f"[{rundir.fmt_time(self.shown - self.t0)}] episodes: "
-                     + "  ".join(f"{os.path.basename(j.run_dir)} {last_episode(j.run_dir)}" for j in running))
+                     + "  ".join(f"{os.path.basename(j.run_dir)} {last_episode(j.run_dir)}" for j in self.running))
+
+
+def collect(pending, ready_of, result_of, progress):
+    """Wait for every pending run ({handle: job}) to end, whichever executor runs it: ready_of(handles) -> those
+    ended (waiting a second at most), result_of(handle) -> its exit code; [(job, exit code)]."""
+    done = []
+    while pending:
+        for h in ready_of(list(pending)):
+            job = pending.pop(h)
+            done.append((job, result_of(h)))
+            progress.ended(job, done[-1][1], len(pending))
+        progress.tick()
+    return done
 
 
 def run_local(jobs, parallel, threads, log=lambda m: print(m, flush=True)):
-    """The jobs as local processes, at most `parallel` at a time; [(job, exit code)]."""
-    todo, running, done, progress = list(jobs), {}, [], Progress(len(jobs), log)
-    while todo or running:
-        while todo and len(running) < parallel:
-            job = todo.pop(0)
-            os.makedirs(job.run_dir, exist_ok=True)
-            out = open(os.path.join(job.run_dir, rundir.LOG), "a")
-            running[job.run_dir] = (job, subprocess.Popen(command(job, threads), stdout=out, stderr=subprocess.STDOUT,
-                                                          env={**os.environ, **thread_env(threads)}), out)
-            progress.started(job)
-        time.sleep(0.2)
-        progress.tick([j for j, _, _ in running.values()])
-        for key, (job, proc, out) in list(running.items()):
-            if proc.poll() is not None:
-                out.close()
-                del running[key]
-                done.append((job, proc.returncode))
-                progress.ended(job, proc.returncode, len(todo) + len(running))
-    return done
+    """The jobs as local processes, at most `parallel` at a time, each waited on by a thread that runs it as a Ray
+    task does (run_job); [(job, exit code)]."""
+    import concurrent.futures as cf
+    progress = Progress(len(jobs), log)
+
+    def start(job):
+        progress.started(job)
+        return run_job(command(job, threads), job.run_dir, thread_env(threads), os.getcwd())
+    with cf.ThreadPoolExecutor(parallel) as pool:
+        pending = {pool.submit(start, j): j for j in jobs}
+        return collect(pending, lambda fs: cf.wait(fs, timeout=1.0, return_when=cf.FIRST_COMPLETED)[0],
+                       lambda f: f.result(), progress)
 
 
 def run_ray(jobs, address, threads, log=lambda m: print(m, flush=True), init=None):
@@ -174,20 +181,13 @@ def run_ray(jobs, address, threads, log=lambda m: print(m, flush=True), init=Non
             ray.init(log_to_driver=False, **kw)
         except ConnectionError as e:
             raise ArgError(f"--ray {address}: no Ray cluster there ({tacrl.describe(e)})")
-    cloudpickle = ray.cloudpickle
-    cloudpickle.register_pickle_by_value(sys.modules[__name__])    # the task travels by value: no module to import there
+    ray.cloudpickle.register_pickle_by_value(sys.modules[__name__])    # the task travels by value: no module to import there
     task = ray.remote(num_cpus=threads, max_retries=0)(run_job)
-    refs = {task.remote(command(j, threads), j.run_dir, thread_env(threads), os.getcwd()): j for j in jobs}  # paths as here
-    progress, done = Progress(len(jobs), log), []
+    pending = {task.remote(command(j, threads), j.run_dir, thread_env(threads), os.getcwd()): j for j in jobs}  # paths as here
+    progress = Progress(len(jobs), log)
     for j in jobs:
         progress.started(j, "queued")          # Ray starts each when a node has its CPUs free
-    while len(done) < len(jobs):
-        ready, _ = ray.wait([r for r in refs if refs[r] not in [j for j, _ in done]], num_returns=1, timeout=1.0)
-        for r in ready:
-            done.append((refs[r], ray.get(r)))
-            progress.ended(refs[r], done[-1][1], len(jobs) - len(done))
-        progress.tick([j for r, j in refs.items() if j not in [d for d, _ in done]])
-    return done
+    return collect(pending, lambda refs: ray.wait(refs, num_returns=1, timeout=1.0)[0], ray.get, progress)
 
 
 def parse_list(text, what, cast=str):
