@@ -189,7 +189,7 @@ def test_report_is_written_from_an_archive(tiny_run, tmp_path):
     row = {"success_rate": 0.5, "completion_time_s": [10.0, 1.0], "contact_force_x_N": [1.0, 0.0],
            "contact_force_y_N": [1.0, 0.0], "contact_force_z_N": [1.0, 0.0], "cumulative_reward": [1.0, 0.0],
            "episodes": 20}      # the two-step row's cache: evaluating the baseline takes a minute
-    (docs / "two-step-peg-20mm.json").write_text(json.dumps({"world": sim.WORLD, "row": row}))
+    report.write_world_cache(str(docs / "two-step-peg-20mm.json"), sim.WORLD, row)
     (docs / "fig-peg-obs.png").write_bytes(b"an earlier report's figure, of runs this one has not got")
     assert tacrl.command("report", lambda: report.main([str(results / "*"), "--out", str(docs)])) == 0
     text = (docs / "RESULTS.md").read_text()
@@ -216,10 +216,10 @@ def test_table2_rows_are_evaluated_once_per_world_and_context(tiny_run, tmp_path
     loc = report.eval_cached(run, "loc-2", levels=(1.0,), episodes=1, log=said.append)
     assert len(said) == 1 and report.eval_cached(run, "loc-2", levels=(1.0,), episodes=1, log=said.append) == loc
     cache = next(d.glob("eval-loc-2*.json"))
-    assert json.loads(cache.read_text())["world"] == sim.WORLD and len(said) == 1
-    cache.write_text(json.dumps({"world": sim.WORLD - 1, "rows": loc}))     # another world's rows: evaluated again
+    assert report.read_world_cache(str(cache)) == (sim.WORLD, loc) and len(said) == 1
+    report.write_world_cache(str(cache), sim.WORLD - 1, loc)      # another world's rows: evaluated again
     report.eval_cached(run, "loc-2", levels=(1.0,), episodes=1, log=said.append)
-    assert len(said) == 2 and json.loads(cache.read_text())["world"] == sim.WORLD
+    assert len(said) == 2 and report.read_world_cache(str(cache))[0] == sim.WORLD
     old = {**run, "eval": {**run["eval"], "world": None}}          # a run of an older world: its own cache, or nothing
     cache.write_text(json.dumps(loc))                              # a cache of before the world key: the unversioned world's
     assert report.eval_cached(old, "loc-2", levels=(1.0,), episodes=1, log=said.append) == loc and len(said) == 2

@@ -70,6 +70,20 @@ def read_json(path):
         return json.load(f)
 
 
+def read_world_cache(path):
+    """(world, value) of a cached evaluation written by write_world_cache; one written before the world key (the
+    bare value) is of the unversioned world, None; (None, None) where there is none."""
+    if not os.path.exists(path):
+        return None, None
+    d = read_json(path)
+    return (d["world"], d["value"]) if isinstance(d, dict) and set(d) == {"world", "value"} else (None, d)
+
+
+def write_world_cache(path, world, value):
+    with open(path, "w") as f:
+        json.dump({"world": world, "value": value}, f, indent=2)
+
+
 def load_run(d):
     """A run dir as {'dir', 'cfg' (config dict), 'm' ({metrics column: array}), 'eval' (eval.json or None)}."""
     try:
@@ -148,10 +162,9 @@ def eval_cached(run, context, levels=LEVELS, episodes=20, log=print):
     tag = "" if tuple(levels) == LEVELS else "-" + "-".join(f"{mm:g}" for mm in levels) + "mm"
     path = os.path.join(run["dir"], f"eval-{context}{tag}.json")
     run_world = run["eval"].get("world") if run["eval"] else sim.WORLD
-    cached = read_json(path) if os.path.exists(path) else {}
-    cached = {"world": None, "rows": cached} if isinstance(cached, list) else cached
+    cached = read_world_cache(path)
     for world, rows in ([(run_world, run["eval"]["rows"])] if context == "train" and run["eval"] else []) + \
-            ([(cached.get("world"), cached["rows"])] if isinstance(cached, dict) and cached.get("rows") else []):  # then the cache
+            ([cached] if cached[1] else []):                                       # eval.json, then the cache
         if world == run_world and [(r["error_mm"], r.get("ex_r_mm")) for r in rows] == plan and rows[0]["episodes"] == episodes:
             return rows
     if run_world != sim.WORLD:
@@ -161,8 +174,7 @@ def eval_cached(run, context, levels=LEVELS, episodes=20, log=print):
     log(f"  evaluating {run['dir']} in {context} at {', '.join(f'{mm:g}' for mm in levels)} mm")
     with evaluate.eval_env(cfg["task"], act, context, cfg["roi"], cfg["clearance_mm"]) as env:
         rows = evaluate.evaluate_levels(env, act, levels, episodes, evaluate.EVAL_SEED + cfg["seed"])
-    with open(path, "w") as f:
-        json.dump({"world": sim.WORLD, "rows": rows}, f, indent=2)
+    write_world_cache(path, sim.WORLD, rows)
     return rows
 
 
@@ -318,15 +330,13 @@ def write_report(patterns, out_dir="docs", log=print):
            "| method | training episodes | SR | CT (s) | peak contact force x / y / z (N) | cumulative reward | "
            "paper: SR, CT, force x/y/z |", "|---|---|---|---|---|---|---|"]
     path = os.path.join(out_dir, "two-step-peg-20mm.json")     # the two-step row, kept with its world
-    cached = read_json(path) if os.path.exists(path) else {}
-    cached = cached if "world" in cached else {"world": None, "row": cached} if cached else {}   # before the world key
-    ts_row = cached.get("row") if cached and cached["world"] == world else None
+    ts_world, ts_row = read_world_cache(path)
+    ts_row = ts_row if ts_row and ts_world == world else None
     if ts_row is None and world == sim.WORLD:
         log("evaluating the two-step baseline (peg, 20 mm, 20 episodes)")
         with sim.AssemblyEnv("peg", e_r=0.02) as env:
             ts_row = evaluate.evaluate(env, baselines.make("two-step", env), 20, evaluate.EVAL_SEED, log=lambda *_: None)
-        with open(path, "w") as f:
-            json.dump({"world": world, "row": ts_row}, f, indent=2)
+        write_world_cache(path, world, ts_row)
     table1 = [("two-step", [ts_row] if ts_row else [], "-")]
     for name in ("vanilla", "visual", VISUAL_PAPER_CRITICS, "keypoint", "ours"):
         done = [r for r in runs if r["cfg"]["task"] == "peg" and method_of(r["cfg"]) == name and r["eval"]]
