@@ -109,9 +109,9 @@ class Encoder(nn.Module):
         # norm 'joint': one LayerNorm over the fused vector; 'modality': one per modality's features before
         # they are joined (SERL and SAC-AE end each modality's encoder in LayerNorm + tanh), so that the CNN's
         # 6 and the LSTM's 12 features enter at the same scale
-        self.norm = nn.LayerNorm(self.out_dim) if norm == "joint" else nn.ModuleList(
-            [nn.LayerNorm(n) for n in ([2 * FEAT] if kind != "v" else []) + ([FEAT] if self.out_dim == 3 * FEAT or
-                                                                              kind == "v" else [])])
+        seen = self.image is not None or self.keypoint is not None                 # the image's, or the keypoint's, 6
+        sizes = ([2 * FEAT] if kind != "v" else []) + ([FEAT] if seen else [])     # each modality as forward joins them
+        self.norm = nn.LayerNorm(self.out_dim) if norm == "joint" else nn.ModuleList([nn.LayerNorm(n) for n in sizes])
 
     def forward(self, obs):
         z = []

@@ -130,9 +130,7 @@ def train(cfg, log=lambda msg: print(msg, flush=True)):
     torch.manual_seed(cfg.seed)
     # Lines 1-5, initialize the learning architecture: the env holds the hand-designed part of the skill (2: tau(t)
     # and K, Eq. 8-9, 14), the error range E_r (3), the ROI for E_r (4: Eq. 11, at the largest) and the reward (5)
-    env = sim.AssemblyEnv(cfg.task, cfg.context, roi=cfg.roi, clearance=cfg.clearance_mm / 1000, gui=cfg.gui,
-                          keypoint=cfg.obs == "ts-ptk",
-                          base_policy=not cfg.vanilla, e_r_max=cfg.error_mm / 1000)
+    env = make_env(cfg, gui=cfg.gui)
     env.np_random = np.random.default_rng(cfg.seed)
     curr = curriculum.Curriculum(cfg.curriculum, final=cfg.error_mm / 1000)     # line 6: Eq. 16's parameters
     sac, stop, rng = make_sac(cfg), StopRule(cfg), np.random.default_rng(cfg.seed + 1)   # (rng: replay sampling)
@@ -215,6 +213,13 @@ def critic_extra(info):
                     np.float32)
 
 
+def make_env(cfg, **kw):
+    """The run's env: its task, context, view, clearance and largest range, with the hand-designed part (none for
+    --vanilla) and, for keypoint RL, the keypoint in the observation."""
+    return sim.AssemblyEnv(cfg.task, cfg.context, roi=cfg.roi, clearance=cfg.clearance_mm / 1000, e_r_max=cfg.error_mm / 1000,
+                           base_policy=not cfg.vanilla, keypoint=cfg.obs == "ts-ptk", **kw)
+
+
 def make_sac(cfg, device=None):
     return policy.SAC(cfg.obs, POSE_SCALE, sim.F_MAX6, lr=cfg.lr, gamma=cfg.gamma, target_entropy=cfg.target_entropy,
                       state_dim=STATE_DIM if cfg.critic == "privileged" else 0,
@@ -268,9 +273,7 @@ class StopRule:
 
 def validate(cfg, sac, curr):
     """Greedy successes at the final range, in a new env, on seeds apart from training's and evaluation's."""
-    with sim.AssemblyEnv(cfg.task, cfg.context, e_r=curr.final, ex_r=curr.ranges()[1], roi=cfg.roi,
-                         e_r_max=cfg.error_mm / 1000, clearance=cfg.clearance_mm / 1000, base_policy=not cfg.vanilla,
-                         keypoint=cfg.obs == "ts-ptk") as env:
+    with make_env(cfg, e_r=curr.final, ex_r=curr.ranges()[1]) as env:
         row = evaluate.evaluate(env, lambda obs: sac.act(obs, deterministic=True), VAL_EPISODES, VAL_SEED + cfg.seed,
                                 log=lambda *_: None)
     return round(row["success_rate"] * VAL_EPISODES)
