@@ -119,6 +119,8 @@ POSE_SCALE = np.array([sim.E_R_FINAL] * 3 + [sim.E_ROT_FINAL] * 3)   # m, rad: t
 STATE_DIM = 7                                                        # what privileged critics read (critic_state)
 EXTRA_DIM = 3                                                        # what --critic-extra adds (critic_extra)
 RESUME_MAY_SET = ("resume", "train_episodes", "stop_held", "threads", "track")   # to extend a run; nothing else changes
+RUN_NAME_TAGS = (("clearance_mm", "c"), ("updates", "u"), ("warmup", "w"), ("batch", "b"), ("buffer", "buf"),
+                 ("lr", "lr"), ("gamma", "g"), ("target_entropy", "ent"))   # default_run_dir's tail, where not the default
 VAL_SEED, VAL_EPISODES, VAL_WINS, VAL_EVERY, VAL_PASSES = 2000, 20, 19, 10, 2   # stop when learned: 19 of 20 twice
 
 
@@ -448,12 +450,13 @@ def check(cfg):
 
 
 def default_run_dir(cfg):
-    """runs/<task>-[vanilla-]<obs>-<curriculum>[-e<E_r mm>][-roi-<roi>][-<critic>][-aug<s>][-shift<px>][-extra]
-    [-next-online][-norm-modality][-own-actor-enc][-n<steps>][-auxr<w>][-auxo<w>]-s<seed>: the flags of the baselines, ablations and options are in its name, so
-    that no run overwrites another's directory."""
+    """runs/<task>-[vanilla-]<obs>-<curriculum>[-e<E_r mm>][-roi-<roi>][-ctx-<context>][-<critic>][-aug<s>][-shift<px>][-extra]
+    [-next-online][-norm-modality][-own-actor-enc][-n<steps>][-auxr<w>][-auxo<w>][-<tag><value> of RUN_NAME_TAGS]-s<seed>:
+    the flags of the baselines, ablations and options are in its name, so that no run overwrites another's directory."""
     name = f"{cfg.task}-{'vanilla-' if cfg.vanilla else ''}{cfg.obs}-{cfg.curriculum}"
     name += f"-e{cfg.error_mm:g}" if cfg.error_mm != Config.error_mm else ""
     name += f"-roi-{cfg.roi}" if cfg.roi != "task" else ""
+    name += f"-ctx-{cfg.context}" if cfg.context != Config.context else ""
     name += f"-{cfg.critic}" if cfg.critic != Config.critic else ""
     name += f"-aug{cfg.augment:g}" if cfg.augment else ""
     name += f"-shift{cfg.shift}" if cfg.shift else ""
@@ -464,6 +467,9 @@ def default_run_dir(cfg):
     name += f"-n{cfg.nstep}" if cfg.nstep > 1 else ""
     name += f"-auxr{cfg.aux_reward:g}" if cfg.aux_reward else ""
     name += f"-auxo{cfg.aux_offset:g}" if cfg.aux_offset else ""
+    for field, tag in RUN_NAME_TAGS:                    # the scene and SAC's numbers, where not the defaults
+        value = getattr(cfg, field)
+        name += f"-{tag}{value:g}" if value != getattr(Config, field) else ""
     return os.path.join("runs", f"{name}-s{cfg.seed}")
 
 

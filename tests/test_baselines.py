@@ -1,5 +1,7 @@
 """The two-step baseline's parts (hole detection, calibration and visual servo)."""
 
+import dataclasses
+
 import numpy as np
 
 import baselines
@@ -68,3 +70,26 @@ def test_ablation_runs_get_run_dirs_of_their_own():
     assert dirs == ["runs/peg-ts-ptv-adaptive-s0", "runs/peg-ts-ptv-adaptive-roi-full-s0",
                     "runs/peg-ts-ptv-none-e10-s0", "runs/peg-ts-ptv-none-s0", "runs/peg-ts-ptv-none-e30-roi-200-s1",
                     "runs/peg-v-adaptive-multimodal-s0"]
+
+
+NOT_IN_RUN_NAME = {"eval", "resume", "run_dir", "track", "threads", "device", "gui", "episodes", "json", "video",
+                   "eval_levels", "train_episodes", "stop_held"}   # how a run is run, evaluated or extended, not what it learns
+
+
+def test_every_training_choice_is_in_the_run_dir_name():
+    """One flag changed from its default gives a run dir of its own: no learned run's name is another's."""
+    dirs = {"default": tacrl.default_run_dir(tacrl.Config())}
+    for f in dataclasses.fields(tacrl.Config):
+        if f.name in NOT_IN_RUN_NAME:
+            continue
+        cfg, meta = tacrl.Config(), f.metadata
+        if meta["choices"]:
+            value = next(c for c in meta["choices"] if c != f.default)
+        elif isinstance(f.default, bool):
+            value = not f.default
+        else:
+            hi = (meta["bounds"] or (None, None))[1]
+            value = f.type(f.default + 1) if hi is None or f.default + 1 < hi else (f.default + hi) / 2
+        setattr(cfg, f.name, value)
+        dirs[f.name] = tacrl.default_run_dir(cfg)
+    assert len(set(dirs.values())) == len(dirs), dirs
