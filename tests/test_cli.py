@@ -41,7 +41,7 @@ def test_the_readmes_command_through_the_shell_in_a_tiny_configuration_without_t
     r = shell("--task", "peg", *tiny)
     assert r.returncode == 0 and r.stderr == "", r.stderr
     assert len([x for x in r.stdout.splitlines() if x.startswith("ep ") and " ETA " in x]) == 1
-    run = tmp_path / "runs" / "peg-ts-ptv-adaptive-s0"
+    run = tmp_path / "runs" / "peg-ts-ptv-adaptive-u2-w0-b8-buf240-s0"     # the default name, with what tiny changed
     assert sorted(os.listdir(run)) == ["ckpt.pt", "config.json", "curves.png", "eval.json", "metrics.csv", "policy.pt",
                                        "replay"]
     assert json.loads((run / "eval.json").read_text())["train_episodes"] == 1

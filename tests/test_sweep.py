@@ -39,7 +39,7 @@ def stand_in(job, threads):
 def test_a_sweep_runs_here_skips_what_finished_and_resumes_what_stopped(tmp_path, capsys, monkeypatch):
     root = str(tmp_path / "runs")
     monkeypatch.setattr(sweep, "command", stand_in)
-    dirs = [os.path.join(root, f"peg-ts-ptv-adaptive-e1-s{s}") for s in (0, 1, 2)]
+    dirs = [os.path.join(root, f"peg-ts-ptv-adaptive-e1-u2-w1-b8-buf240-s{s}") for s in (0, 1, 2)]
     for d, state in zip(dirs, ("done", "stopped")):           # s0 finished, s1 stopped: each a run of this plan
         os.makedirs(d)
         cfg = tacrl.parse_args([*TINY, "--seed", d[-1], "--run-dir", d])
@@ -53,8 +53,8 @@ def test_a_sweep_runs_here_skips_what_finished_and_resumes_what_stopped(tmp_path
     assert "3 runs, 1 finished already; 2 to run here" in out and out.count("finished (") == 2
     assert [open(os.path.join(d, "train.log")).read().split() for d in dirs[1:]] == [["ep", "resume", "1"],
                                                                                     ["ep", "new", "1"]]
-    assert tacrl.command("sweep", lambda: sweep.main(["--seeds", "0", "--root", root, "--", *TINY, "--lr", "0.001"])) == 2
-    assert "holds another run (its lr differ)" in capsys.readouterr().err     # nothing overwritten
+    assert tacrl.command("sweep", lambda: sweep.main(["--seeds", "0", "--root", root, "--", *TINY, "--eval-levels", "2"])) == 2
+    assert "holds another run (its eval_levels differ)" in capsys.readouterr().err     # nothing overwritten
 
 
 def test_a_sweep_runs_as_ray_tasks_on_a_local_instance(tmp_path, monkeypatch):
