@@ -176,6 +176,139 @@ CONTEXTS = {
 }
 
 
+# ---------------------------------------------------------------- families of contexts (drawn from seeds)
+# A family varies one kind of thing the camera sees, or all of them together (mixed); family_context draws
+# one scene from a seed. Seeds from FAMILY_TEST_SEED0 up are held out for testing ('light:test' draws one
+# anew each episode); training's randomization (sim.AssemblyEnv's `randomize`) draws seeds below it.
+# The ranges are ours (no source gives a workcell's), each meant as what one workcell sees over a day:
+FAMILIES = ("place", "light", "colour", "parts", "mixed")
+FAMILY_TEST_SEED0 = 10_000
+PLACE_RING, PLACE_X, PLACE_Y, PLACE_YAW = (0.12, 0.32), (0.32, 0.70), (-0.32, 0.32), 0.5   # m from training's, m, rad
+LIGHT_ELEVATION, LIGHT_AMBIENT, LIGHT_DIFFUSE = (np.radians(35), np.radians(85)), (0.3, 0.8), (0.15, 0.5)
+# sRGB of a black body at 2700-7500 K (Mitchell Charity, "What color is a blackbody?", vendian.org, 2001):
+# the warm to cold white of lamps and daylight
+KELVIN_RGB = {2700: (1.0, 0.655, 0.341), 4000: (1.0, 0.819, 0.638), 5500: (1.0, 0.925, 0.877),
+              6500: (1.0, 0.976, 0.976), 7500: (0.918, 0.931, 1.0)}
+TABLE_VALUE, BOARD_VALUE, MAX_SATURATION = (0.12, 0.9), (0.25, 0.95), 0.6   # HSV value and saturation ranges; a board
+#                                                     # darker than 0.25 would hide the black hole (0.03) in its grey
+# Parts lying on the board: (half extents, m) of an M4 nut, an M3 x 18 screw, an M8 washer, a 12 mm block, a
+# 5 mm cable tie's cut end; metal greys, black, brass, red and blue plastic.
+LOOSE_PARTS = ((0.0035, 0.0035, 0.0016), (0.0015, 0.009, 0.0015), (0.008, 0.008, 0.0008), (0.006, 0.006, 0.004),
+               (0.0025, 0.012, 0.0006))
+PART_COLOURS = (GREY, (0.7, 0.7, 0.72, 1), DARK, BRASS, (0.8, 0.1, 0.1, 1), PART_BLUE)
+PARTS_PER_SCENE, BOARD_HALF = (1, 4), 0.06          # the boards' half side, m (peg plate 0.12 m; gear plate 2 x 0.06)
+
+
+def family_context(family, seed, task="peg"):
+    """One scene of `family` (FAMILIES), drawn from `seed`: the same seed gives the same scene. Parts lie on
+    the board beyond the tool's reach (at every error up to 20 mm the peg's rim, BUMP_R_MAX, or the held gear,
+    which meets nothing below the shaft's top until aligned), so a family changes what the camera sees, not
+    what the tool touches; at large errors some of them lie inside the task ROI."""
+    if family not in FAMILIES:
+        raise ValueError(f"unknown family {family!r} ({', '.join(FAMILIES)})")
+    rng = np.random.default_rng([seed, FAMILIES.index(family)])
+    kinds = FAMILIES[:-1] if family == "mixed" else (family,)
+    c = {}
+    if "place" in kinds:
+        c.update(_draw_place(rng))
+    if "light" in kinds:
+        az, el = rng.uniform(0, 2 * np.pi), rng.uniform(*LIGHT_ELEVATION)
+        c["light"] = (("lightDirection", _floats([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])),
+                      ("lightColor", _kelvin_rgb(rng.uniform(2700, 7500))),
+                      ("lightAmbientCoeff", round(rng.uniform(*LIGHT_AMBIENT), 3)),
+                      ("lightDiffuseCoeff", round(rng.uniform(*LIGHT_DIFFUSE), 3)))
+    if "colour" in kinds:
+        c["table_rgba"], c["board_rgba"] = _draw_colour(rng, TABLE_VALUE), _draw_colour(rng, BOARD_VALUE)
+    if "parts" in kinds:
+        c["objects"], c["on_board"] = _draw_parts(rng, task), True
+    return Context(**c)
+
+
+def _draw_place(rng):
+    """Another place and turn of the board on the table, clear of the workcell's boxes by 1 cm."""
+    t = np.array(Context().board_xy)
+    while True:
+        xy = rng.uniform((PLACE_X[0], PLACE_Y[0]), (PLACE_X[1], PLACE_Y[1]))
+        yaw = rng.uniform(-PLACE_YAW, PLACE_YAW)
+        if not PLACE_RING[0] <= np.linalg.norm(xy - t) <= PLACE_RING[1]:
+            continue
+        g = np.linspace(-BOARD_HALF, BOARD_HALF, 7)
+        pts = xy + np.stack(np.meshgrid(g, g), -1).reshape(-1, 2) @ ctl.rot_z(yaw)[:2, :2].T     # the board's footprint
+        if not any(np.all(np.abs(pts - np.array(c[:2])) < np.array(he[:2]) + 0.01, 1).any() for he, c, _ in WORKCELL):
+            return {"board_xy": _floats(xy), "board_yaw": round(float(yaw), 4)}
+
+
+def _floats(x, digits=3):                  # plain, rounded floats: a Context's repr is a cache key (report.py)
+    return tuple(round(float(v), digits) for v in x)
+
+
+def _kelvin_rgb(kelvin):
+    ks = sorted(KELVIN_RGB)
+    return _floats([np.interp(kelvin, ks, [KELVIN_RGB[k][i] for k in ks]) for i in range(3)])
+
+
+def _draw_colour(rng, value):
+    """An rgba of any hue, saturation up to MAX_SATURATION and HSV value within `value`."""
+    h, s, v = rng.uniform(0, 1), rng.uniform(0, MAX_SATURATION), rng.uniform(*value)
+    k = (np.array([5.0, 3.0, 1.0]) + 6 * h) % 6                                           # HSV -> RGB
+    rgb = v - v * s * np.clip(np.minimum(k, 4 - k), 0, 1)
+    return (*_floats(rgb), 1)
+
+
+def _draw_parts(rng, task):
+    """PARTS_PER_SCENE parts at random spots of the board (its frame), beyond the tool's reach and off the
+    mating gear, each whole on the board."""
+    out, n = [], rng.integers(PARTS_PER_SCENE[0], PARTS_PER_SCENE[1] + 1)
+    while len(out) < n:
+        he = LOOSE_PARTS[rng.integers(len(LOOSE_PARTS))]
+        r = np.hypot(he[0], he[1])                                        # the part's footprint radius
+        xy = rng.uniform(-BOARD_HALF + r, BOARD_HALF - r, 2)
+        reach = BUMP_R_MAX if task == "peg" else GEAR_R_TIP + 0.002
+        if np.linalg.norm(xy) < reach + r or (task == "gear" and np.hypot(xy[0] - GEAR_CENTRES, xy[1]) < GEAR_R_TIP + 0.002 + r):
+            continue
+        if any(np.hypot(*np.subtract(xy, o[1])) < r + np.hypot(*o[0][:2]) for o in out):   # parts do not overlap
+            continue
+        out.append((he, _floats(xy, 4), PART_COLOURS[rng.integers(len(PART_COLOURS))]))
+    return tuple(out)
+
+
+def context_of(name, task="peg"):
+    """--context's value -> a Context: a name in CONTEXTS, or FAMILY:SEED (one scene of a family). ValueError
+    for anything else; FAMILY:test (a held-out scene each episode) is the env's to draw."""
+    if name in CONTEXTS:
+        return CONTEXTS[name]
+    family, _, seed = name.partition(":")
+    if family in FAMILIES and seed.isdigit():
+        return family_context(family, int(seed), task)
+    if family in FAMILIES and seed == "test":
+        return family_context(family, FAMILY_TEST_SEED0, task)     # the first held-out scene, until the env draws
+    raise ValueError(f"unknown context {name!r} ({', '.join(CONTEXTS)}, or FAMILY:SEED or FAMILY:test with FAMILY "
+                     f"one of {', '.join(FAMILIES)})")
+
+
+def context_key(name, task="peg"):
+    """What --context `name` stands for, as text: a cache's key (a context or a family redefined is evaluated again)."""
+    family, _, which = name.partition(":")
+    if which == "test":
+        return repr((name, task, FAMILY_TEST_SEED0, PLACE_RING, PLACE_X, PLACE_Y, PLACE_YAW, LIGHT_ELEVATION, LIGHT_AMBIENT,
+                     LIGHT_DIFFUSE, KELVIN_RGB, TABLE_VALUE, BOARD_VALUE, MAX_SATURATION, LOOSE_PARTS, PART_COLOURS,
+                     PARTS_PER_SCENE, BOARD_HALF))
+    return repr(context_of(name, task))
+
+
+class ContextNames:
+    """The values --context takes, as argparse's choices: CONTEXTS's names, FAMILY:SEED and FAMILY:test."""
+    def __contains__(self, name):
+        try:
+            return bool(context_of(name))
+        except (ValueError, TypeError):
+            return False
+
+    def __iter__(self):
+        yield from CONTEXTS
+        yield from (f"{f}:SEED|test" for f in FAMILIES)
+
+
 # ---------------------------------------------------------------- geometry helpers
 def quat_from_matrix(R):
     """Rotation matrix (3, 3) -> pybullet quaternion (x, y, z, w)."""

@@ -23,8 +23,9 @@ import cv2
 import numpy as np
 
 import control as ctl
-from scene import (APPROACH, CAM_FULL, CLEAR, CONTEXTS, CONTROL_HZ, CONTROL_PER_POLICY, FT_RANGE, IMG, POLICY_HZ, R_DOWN,
-                   World, full_projection, project, task_features, to_world)
+from scene import (APPROACH, CAM_FULL, CLEAR, CONTEXTS, CONTROL_HZ, CONTROL_PER_POLICY, FAMILIES, FAMILY_TEST_SEED0, FT_RANGE,
+                   IMG, POLICY_HZ, R_DOWN, World, context_of, family_context, full_projection, project, task_features,
+                   to_world)
 
 try:                   # optional: the env is a gymnasium.Env where gymnasium is installed
     import gymnasium
@@ -169,7 +170,9 @@ def hole_keypoint(img):
 class AssemblyEnv(gymnasium.Env if gymnasium else object):
     """Residual-RL assembly env (Algorithm 1's 'interact with environment').
 
-    task: 'peg' or 'gear'; context: a name in CONTEXTS; e_r: guidance error range E_r (m, x y z;
+    task: 'peg' or 'gear'; context: a name in CONTEXTS, FAMILY:SEED (one scene of a family, scene.FAMILIES) or
+    FAMILY:test (a held-out scene of the family drawn each episode); randomize: families whose training scenes
+    (seeds below scene.FAMILY_TEST_SEED0) each episode draws from, in place of the context; e_r: guidance error range E_r (m, x y z;
     the rotation error about z scales with it, E_ROT_FINAL at E_R_FINAL); ex_r: exploration range
     Ex_r (m), sets K through Eq. 8-9, floored at EX_MIN; roi: 'task' (Eq. 11) or a preset name;
     clearance: diametral clearance, m; e_r_max: the largest E_r this env will be set to (at least
@@ -192,17 +195,18 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
 
     def __init__(self, task="peg", context="train", e_r=0.0, ex_r=None, roi="task", clearance=1e-4,
                  gui=False, image=True, base_policy=True, e_r_max=None, render_mode=None, ft_noise=True,
-                 image_noise=True, keypoint=False):
+                 image_noise=True, keypoint=False, randomize=()):
         if task not in ("peg", "gear"):
             raise ValueError(f"unknown task {task!r} (peg, gear)")
-        if context not in CONTEXTS:
-            raise ValueError(f"unknown context {context!r} ({', '.join(CONTEXTS)})")
+        ctx = context_of(context, task)                       # ValueError for a name that is none
+        if set(randomize) - set(FAMILIES) or (randomize and context != "train"):
+            raise ValueError(f"randomize {randomize!r}: families among {', '.join(FAMILIES)}, in the training context")
         if roi != "task" and roi not in ROI_PRESETS:
             raise ValueError(f"unknown roi {roi!r} (task, {', '.join(ROI_PRESETS)})")
         if render_mode not in (None, "rgb_array"):
             raise ValueError(f"unknown render_mode {render_mode!r} (None, 'rgb_array')")
         self.task, self.context, self.roi_name, self.image_on, self.keypoint = task, context, roi, image, keypoint
-        self.base_policy, self.render_mode = base_policy, render_mode
+        self.base_policy, self.render_mode, self.randomize = base_policy, render_mode, tuple(randomize)
         if gymnasium is not None:
             self.observation_space = spaces.Dict({
                 "image": spaces.Box(0, 255, (IMG, IMG), np.uint8),
@@ -211,11 +215,12 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
                 **({"keypoint": spaces.Box(np.float32([-0.5, -0.5, 0, 0]), np.float32([0.5, 0.5, 1, 1]), dtype=np.float32)}
                    if keypoint else {})})
             self.action_space = spaces.Box(-1.0, 1.0, (6,), np.float32)
-        self.world = World(task, clearance, gui, ft_noise, image_noise, CONTEXTS[context])
+        self.world = World(task, clearance, gui, ft_noise, image_noise, ctx)
         self.e_r_max = max(E_R_FINAL, e_r, e_r_max or 0.0)
         self.approach = max(APPROACH, round(self.e_r_max + CLEAR, 6))
         self.set_ranges(e_r, ex_r)
         self.np_random = np.random.default_rng()      # the errors' generator (gymnasium's name for it)
+        self.scene_rng = np.random.default_rng(0)     # the scenes' of a family or randomization (not the errors')
         self.roi = None
         self.t, self.steps = 0.0, 0
 
@@ -255,8 +260,9 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
         options: 'error' (4,) fixes e; 'goal_shift' (4,) moves the board (and so X_g) by (dx, dy, dz, dyaw)."""
         if seed is not None:      # as gymnasium.Env.reset(seed) does: the same stream as default_rng(seed)
             self.np_random = np.random.default_rng(seed)
+            self.scene_rng = np.random.default_rng([seed, 1])
         options = options or {}
-        w, ctx = self.world, CONTEXTS[self.context]
+        w, ctx = self.world, self._episode_context()
         w.rebuild(ctx)                 # every episode in a fresh world: it depends on its seed only
         scale = np.array([self.e_r] * 3 + [E_ROT_FINAL * self.e_r / E_R_FINAL])
         e = np.asarray(options["error"], float) if "error" in options else self.np_random.uniform(-1, 1, 4) * scale  # Eq. 13
@@ -277,14 +283,25 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
         w.step_physics(4)
         w.move_to(self.x_i_hat)
         w.tare()
-        if self.roi is None or self._roi_key != (self.context, self.roi_name):
-            self.roi, self._roi_key = self._compute_roi(self.x_i, self.x_g), (self.context, self.roi_name)
+        if self.roi is None or self._roi_key != (ctx, self.roi_name):
+            self.roi, self._roi_key = self._compute_roi(self.x_i, self.x_g), (ctx, self.roi_name)
         self.t, self.steps = 0.0, 0
         self.f_tool, self.f_tick = np.zeros(6), np.zeros(6)
         x = w.tool_pose()
         self.pose_hist = np.repeat(self._rel_pose(x)[None], HIST, 0)
         self.wrench_hist = np.zeros((HIST, 6), np.float32)
         return self._obs(), self._info(x, False)
+
+    def _episode_context(self):
+        """This episode's scene: the context's, a held-out scene of its family (FAMILY:test), or a training scene
+        of the randomized families."""
+        family, _, which = self.context.partition(":")
+        if which == "test":
+            return family_context(family, FAMILY_TEST_SEED0 + int(self.scene_rng.integers(FAMILY_TEST_SEED0)), self.task)
+        if self.randomize:
+            family = self.randomize[self.scene_rng.integers(len(self.randomize))]
+            return family_context(family, int(self.scene_rng.integers(FAMILY_TEST_SEED0)), self.task)
+        return context_of(self.context, self.task)
 
     def _rel_pose(self, x):
         """Tip pose relative to X^_g, in X^_g's frame: [x y z rx ry rz] (m, rad), float32."""

@@ -61,7 +61,9 @@ class Config:
     # the task (Sec. 5.1.1)
     error_mm: float = opt(20.0, "error range E_r in mm (Eq. 13-15): evaluated, or the curriculum's final one",
                           bounds=(0.0, 30.0))
-    context: str = opt("train", "board location and background (Sec. 5.1.4)", tuple(sim.CONTEXTS))
+    context: str = opt("train", "board location and background (Sec. 5.1.4), or FAMILY:SEED, one scene of a family "
+                                "(place, light, colour, parts, mixed), or FAMILY:test, a held-out one each episode",
+                       scene.ContextNames())
     roi: str = opt("task", "image window: task (Eq. 11's task attention) or a window of Fig. 11",
                    ("task", *sim.ROI_PRESETS))
     clearance_mm: float = opt(0.1, "diametral clearance of the peg or the gear's bore, mm", bounds=(0.0, 2.0),
@@ -77,6 +79,8 @@ class Config:
                                      "stiffness from the estimated poses; F_d alone moves the tool")
     critic: str = train_opt("privileged", "privileged: also X - X_g (README difference 13)", ("privileged", "multimodal"))
     augment: float = train_opt(0.0, "image jitter s: brightness, contrast x U(1-s, 1+s) (README difference 17)", bounds=(0, 1))
+    randomize: str = train_opt("", "draw each episode's scene from these families' training scenes, comma-separated "
+                                   "(domain randomization: place, light, colour, parts, mixed)")
     shift: int = train_opt(0, "random image shift in the updates, up to this many pixels (DrQ; 0: none)", bounds=(0, 16))
     critic_extra: bool = train_opt(False, "the paper's critics also read the time and the curriculum's E_r and Ex_r "
                                           "(known to the agent; --critic multimodal)")
@@ -119,6 +123,8 @@ POSE_SCALE = np.array([sim.E_R_FINAL] * 3 + [sim.E_ROT_FINAL] * 3)   # m, rad: t
 STATE_DIM = 7                                                        # what privileged critics read (critic_state)
 EXTRA_DIM = 3                                                        # what --critic-extra adds (critic_extra)
 RESUME_MAY_SET = ("resume", "train_episodes", "stop_held", "threads", "track")   # to extend a run; nothing else changes
+NOT_LEARNING = ("eval", "resume", "run_dir", "track", "threads", "device", "gui", "episodes", "json", "video", "eval_levels",
+                "train_episodes", "stop_held")     # how a run is run, evaluated or extended, not what it learns
 RUN_NAME_TAGS = (("clearance_mm", "c"), ("updates", "u"), ("warmup", "w"), ("batch", "b"), ("buffer", "buf"),
                  ("lr", "lr"), ("gamma", "g"), ("target_entropy", "ent"))   # default_run_dir's tail, where not the default
 VAL_SEED, VAL_EPISODES, VAL_WINS, VAL_EVERY, VAL_PASSES = 2000, 20, 19, 10, 2   # stop when learned: 19 of 20 twice
@@ -219,7 +225,11 @@ def make_env(cfg, **kw):
     """The run's env: its task, context, view, clearance and largest range, with the hand-designed part (none for
     --vanilla) and, for keypoint RL, the keypoint in the observation."""
     return sim.AssemblyEnv(cfg.task, cfg.context, roi=cfg.roi, clearance=cfg.clearance_mm / 1000, e_r_max=cfg.error_mm / 1000,
-                           base_policy=not cfg.vanilla, keypoint=cfg.obs == "ts-ptk", **kw)
+                           base_policy=not cfg.vanilla, keypoint=cfg.obs == "ts-ptk", randomize=randomized(cfg), **kw)
+
+
+def randomized(cfg):
+    return tuple(f for f in cfg.randomize.split(",") if f)
 
 
 def make_sac(cfg, device=None):
@@ -403,6 +413,11 @@ def check(cfg):
             (cfg.eval and cfg.eval not in baselines.NAMES and not os.path.isfile(cfg.eval),
              f"--eval must be {', '.join(baselines.NAMES)} or an existing policy.pt file, not {cfg.eval!r}"),
             (cfg.eval == "two-step" and cfg.task != "peg", "--eval two-step is the peg-in-hole baseline (Table 1)"),
+            (not cfg.eval and cfg.context.endswith(":test"), f"--context {cfg.context} draws held-out scenes: it is "
+                                                             "for --eval (training draws its own with --randomize)"),
+            (set(randomized(cfg)) - set(sim.FAMILIES) or (cfg.randomize and cfg.context != "train"),
+             f"--randomize takes families among {', '.join(sim.FAMILIES)}, comma-separated, in the training "
+             f"context, not {cfg.randomize!r}" + (f" with --context {cfg.context}" if cfg.context != "train" else "")),
             (cfg.obs == "ts-ptk" and cfg.task != "peg", "--obs ts-ptk (keypoint RL) finds the peg board's hole; the "
                                                         "gear's shaft is no keypoint it finds (Table 1 is the peg's)"),
             (cfg.critic != "multimodal" and (cfg.critic_extra, cfg.next_encoder, cfg.actor_encoder, cfg.aux_reward,
@@ -450,7 +465,7 @@ def check(cfg):
 
 
 def default_run_dir(cfg):
-    """runs/<task>-[vanilla-]<obs>-<curriculum>[-e<E_r mm>][-roi-<roi>][-ctx-<context>][-<critic>][-aug<s>][-shift<px>][-extra]
+    """runs/<task>-[vanilla-]<obs>-<curriculum>[-e<E_r mm>][-roi-<roi>][-ctx-<context>][-<critic>][-aug<s>][-shift<px>][-rand-<families>][-extra]
     [-next-online][-norm-modality][-own-actor-enc][-n<steps>][-auxr<w>][-auxo<w>][-<tag><value> of RUN_NAME_TAGS]-s<seed>:
     the flags of the baselines, ablations and options are in its name, so that no run overwrites another's directory."""
     name = f"{cfg.task}-{'vanilla-' if cfg.vanilla else ''}{cfg.obs}-{cfg.curriculum}"
@@ -460,6 +475,7 @@ def default_run_dir(cfg):
     name += f"-{cfg.critic}" if cfg.critic != Config.critic else ""
     name += f"-aug{cfg.augment:g}" if cfg.augment else ""
     name += f"-shift{cfg.shift}" if cfg.shift else ""
+    name += f"-rand-{cfg.randomize.replace(',', '+')}" if cfg.randomize else ""
     name += "-extra" if cfg.critic_extra else ""
     name += f"-next-{cfg.next_encoder}" if cfg.next_encoder != Config.next_encoder else ""
     name += f"-norm-{cfg.fusion_norm}" if cfg.fusion_norm != Config.fusion_norm else ""

@@ -72,18 +72,16 @@ def test_ablation_runs_get_run_dirs_of_their_own():
                     "runs/peg-v-adaptive-multimodal-s0"]
 
 
-NOT_IN_RUN_NAME = {"eval", "resume", "run_dir", "track", "threads", "device", "gui", "episodes", "json", "video",
-                   "eval_levels", "train_episodes", "stop_held"}   # how a run is run, evaluated or extended, not what it learns
-
-
 def test_every_training_choice_is_in_the_run_dir_name():
     """One flag changed from its default gives a run dir of its own: no learned run's name is another's."""
     dirs = {"default": tacrl.default_run_dir(tacrl.Config())}
     for f in dataclasses.fields(tacrl.Config):
-        if f.name in NOT_IN_RUN_NAME:
+        if f.name in tacrl.NOT_LEARNING:
             continue
         cfg, meta = tacrl.Config(), f.metadata
-        if meta["choices"]:
+        if f.name == "randomize":
+            value = "light,parts"
+        elif meta["choices"]:
             value = next(c for c in meta["choices"] if c != f.default)
         elif isinstance(f.default, bool):
             value = not f.default

@@ -330,11 +330,18 @@ def test_the_eta_counts_the_updates_still_to_come_during_the_warmup():
 
 def test_every_context_is_evaluated_once_and_the_table_names_each(tiny_run, tmp_path, monkeypatch):
     monkeypatch.setattr(sim, "MAX_STEPS", SHORT)
-    monkeypatch.setattr(sim, "CONTEXTS", {k: sim.CONTEXTS[k] for k in ("train", "loc-2")})
+    two = {k: sim.CONTEXTS[k] for k in ("train", "loc-2")}
+    monkeypatch.setattr(sim, "CONTEXTS", two)
+    monkeypatch.setattr(scene, "CONTEXTS", two)           # (where the env reads a context's name)
+    monkeypatch.setattr(sim, "FAMILIES", ("parts",))
     out = tmp_path / "docs"
     assert report.write_contexts(tiny_run["dir"], str(out), levels=(1.0,), episodes=1, log=lambda *_: None) == 0
     text = (out / "CONTEXTS.md").read_text()
-    assert "| peg | task attention (updates 2, warmup 1, batch 8) | loc-2 | 1 |" in text and "| train |" in text
+    view = "task attention (updates 2, warmup 1, batch 8, buffer 40)"
+    assert f"| peg | {view} | loc-2 | 1 |" in text and "| train |" in text
+    assert "| task | view | seeds | train | parts |" in text and f"| peg | {view} | 1 | - |" in text   # 20 mm: not trained at
+    family = json.loads(open(os.path.join(tiny_run["dir"], "eval-ctx-parts-test.json")).read())
+    assert family["context"] == scene.context_key("parts:test", "peg") and family["levels"] == [20.0]
     assert (out / "ctx-peg-bars.png").stat().st_size > 0 and (out / "ctx-peg-views.png").stat().st_size > 0
     cached = json.loads(open(os.path.join(tiny_run["dir"], "eval-ctx-loc-2.json")).read())
     assert cached["world"] == sim.WORLD and cached["context"] == repr(sim.CONTEXTS["loc-2"])
