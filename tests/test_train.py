@@ -342,6 +342,12 @@ def test_every_context_is_evaluated_once_and_the_table_names_each(tiny_run, tmp_
     assert "| task | view | seeds | train | parts |" in text and f"| peg | {view} | 1 | - |" in text   # 20 mm: not trained at
     family = json.loads(open(os.path.join(tiny_run["dir"], "eval-ctx-parts-test.json")).read())
     assert family["context"] == scene.context_key("parts:test", "peg") and family["levels"] == [20.0]
+    asked = []
+    real_rows = report.context_rows
+    monkeypatch.setattr(report, "context_rows", lambda job: asked.append(job[1]) or real_rows(job))
+    assert report.write_families(tiny_run["dir"], str(out), episodes=1, log=lambda *_: None) == 0    # families alone
+    assert asked == ["parts:test"] and f"| peg | {view} | 1 | - |" in (out / "FAMILIES.md").read_text()
+    monkeypatch.setattr(report, "context_rows", real_rows)
     assert (out / "ctx-peg-bars.png").stat().st_size > 0 and (out / "ctx-peg-views.png").stat().st_size > 0
     cached = json.loads(open(os.path.join(tiny_run["dir"], "eval-ctx-loc-2.json")).read())
     assert cached["world"] == sim.WORLD and cached["context"] == repr(sim.CONTEXTS["loc-2"])

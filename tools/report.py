@@ -537,37 +537,82 @@ def training_of(run):
             + (f" (first finished at {stops[0]}, then trained on)" if stops else ""))
 
 
+def ours_runs(patterns, out_dir):
+    """The finished runs of ours (task attention) and of its full view made in this world, trained in 'train'."""
+    tacrl.check_dir_writable(out_dir, "--out")
+    runs = [load_run(d) for d in match_runs(patterns)]
+    os.makedirs(out_dir, exist_ok=True)
+    runs = [r for r in runs if r["eval"] and r["eval"].get("world") == sim.WORLD and r["cfg"]["roi"] in VIEWS
+            and view_of(r["cfg"]) and r["cfg"]["context"] == "train"]
+    if not runs:
+        raise ArgError(f"{patterns!r}: no finished run of ours or its full view made in this world (world {sim.WORLD})")
+    return runs
+
+
+def view_of(cfg):
+    """'task attention' or 'full view', with any other learning setting; '' for a run that is not ours."""
+    setting = method_of({**cfg, "roi": "task", "error_mm": 20.0})
+    return VIEWS.get(cfg["roi"], "") + setting[len("ours"):] if setting.startswith("ours") else ""
+
+
+def evaluate_jobs(jobs_list, jobs):
+    """context_rows of each job, in `jobs` processes (spawned: one torch thread each)."""
+    if jobs == 1:
+        return [context_rows(j) for j in jobs_list]
+    import concurrent.futures as cf
+    import multiprocessing as mp
+    with cf.ProcessPoolExecutor(jobs, mp_context=mp.get_context("spawn")) as ex:
+        return list(ex.map(context_rows, jobs_list))
+
+
+def family_section(runs, episodes, jobs, log):
+    """The table of SR at FAMILY_MM per family of scenes (held-out seeds), each run's training column from its
+    eval.json (the same seeds and code), as markdown lines."""
+    jobs_list = [(r["dir"], f"{family}:test", (FAMILY_MM,), episodes) for r in runs for family in sim.FAMILIES]
+    log(f"  {len(runs)} runs x {len(sim.FAMILIES)} families at {FAMILY_MM:g} mm, {len(jobs_list) * episodes} episodes "
+        f"in {jobs} processes (cached ones are read back)")
+    families = {}              # (task, view) -> {'train' or a family: [SR at FAMILY_MM of each seed]}
+    for (d, ctx, _, _), rows in zip(jobs_list, evaluate_jobs(jobs_list, jobs)):
+        r = next(r for r in runs if r["dir"] == d)
+        by_family = families.setdefault((r["cfg"]["task"], view_of(r["cfg"])), {})
+        by_family.setdefault(ctx.split(":")[0], []).append(rows[0]["success_rate"])
+        if ctx.startswith(sim.FAMILIES[0]):
+            by_family.setdefault("train", []).extend(x["success_rate"] for x in r["eval"]["rows"] if x["error_mm"] == FAMILY_MM)
+    md = [f"Each family (`scene.FAMILIES`) draws a scene from a seed; each of the {episodes} trials of a run meets a "
+          "scene of its own, from seeds that training never draws (`--context FAMILY:test`). Success rate at "
+          f"{FAMILY_MM:g} mm, mean over seeds (min-max); train: the run's eval.json (the same evaluation seeds).", "",
+          "| task | view | seeds | train | " + " | ".join(sim.FAMILIES) + " |", "|---" * (4 + len(sim.FAMILIES)) + "|"]
+    cell = lambda x: f"{np.mean(x):.2f} ({min(x):.2f}-{max(x):.2f})" if len(x) > 1 else f"{x[0]:.2f}" if x else "-"  # noqa: E731
+    for (task, view), by_family in sorted(families.items(), key=lambda kv: (kv[0][0], not kv[0][1].startswith(VIEWS["task"]), kv[0][1])):
+        md.append(f"| {task} | {view} | {len(by_family[sim.FAMILIES[0]])} | {cell(by_family.get('train', []))} | "
+                  + " | ".join(cell(by_family.get(f, [])) for f in sim.FAMILIES) + " |")
+    return md + ["", "The families (ranges in `scene.py`, ours): " + "; ".join(f"`{f}`: {FAMILY_WHAT[f]}"
+                                                                               for f in sim.FAMILIES) + "."]
+
+
+def write_families(patterns, out_dir, episodes=20, jobs=1, log=print):
+    """The families alone (no named context): out_dir/FAMILIES.md, for runs not yet in the contexts' report."""
+    runs = ours_runs(patterns, out_dir)
+    md = ["# Families of scenes, held out", "", f"Made by `python tools/report.py --families \"{patterns}\"` "
+          f"(world {sim.WORLD}).", ""] + family_section(runs, episodes, jobs, log)
+    with open(os.path.join(out_dir, "FAMILIES.md"), "w") as f:
+        f.write("\n".join(md) + "\n")
+    log(f"wrote {out_dir}/FAMILIES.md")
+    return 0
+
+
 def write_contexts(patterns, out_dir, levels=LEVELS, episodes=20, jobs=1, log=print):
     """Train in one context, test in all: every run of ours (task attention) and of its full-view twin made in
     this world, evaluated in every context of sim.CONTEXTS at `levels` (mm), `episodes` trials each; writes
     out_dir/CONTEXTS.md with the table, the goal's check, Fig. 12 and each context's full and task views."""
-    tacrl.check_dir_writable(out_dir, "--out")
-    runs = [load_run(d) for d in match_runs(patterns)]
-    os.makedirs(out_dir, exist_ok=True)
-    setting = lambda cfg: method_of({**cfg, "roi": "task", "error_mm": 20.0})   # noqa: E731  'ours' + any other settings
-    runs = [r for r in runs if r["eval"] and r["eval"].get("world") == sim.WORLD and r["cfg"]["roi"] in VIEWS
-            and setting(r["cfg"]).startswith("ours") and r["cfg"]["context"] == "train"]
-    if not runs:
-        raise ArgError(f"{patterns!r}: no finished run of ours or its full view made in this world (world {sim.WORLD})")
+    runs = ours_runs(patterns, out_dir)
     jobs_list = [(r["dir"], ctx, tuple(levels), episodes) for r in runs for ctx in sim.CONTEXTS]
-    jobs_list += [(r["dir"], f"{family}:test", (FAMILY_MM,), episodes) for r in runs for family in sim.FAMILIES]
-    log(f"  {len(runs)} runs x ({len(sim.CONTEXTS)} contexts at {len(levels)} ranges + {len(sim.FAMILIES)} families at "
-        f"{FAMILY_MM:g} mm), {sum(len(j[2]) for j in jobs_list) * episodes} episodes in {jobs} processes (cached ones are read back)")
-    if jobs > 1:
-        import concurrent.futures as cf
-        import multiprocessing as mp
-        with cf.ProcessPoolExecutor(jobs, mp_context=mp.get_context("spawn")) as ex:
-            results = list(ex.map(context_rows, jobs_list))
-    else:
-        results = [context_rows(j) for j in jobs_list]
+    log(f"  {len(runs)} runs x {len(sim.CONTEXTS)} contexts, {len(jobs_list) * len(levels) * episodes} episodes "
+        f"in {jobs} processes (cached ones are read back)")
     table, trained = {}, {}    # (task, view, context) -> [rows of each seed]; (task, view) -> its seeds' training
-    families = {}              # (task, view) -> {family: [SR at FAMILY_MM of each seed]}
-    for (d, ctx, _, _), rows in zip(jobs_list, results):
+    for (d, ctx, _, _), rows in zip(jobs_list, evaluate_jobs(jobs_list, jobs)):
         r = next(r for r in runs if r["dir"] == d)
-        view = VIEWS[r["cfg"]["roi"]] + setting(r["cfg"])[len("ours"):]
-        if ctx.endswith(":test"):
-            families.setdefault((r["cfg"]["task"], view), {}).setdefault(ctx.split(":")[0], []).append(rows[0]["success_rate"])
-            continue
+        view = view_of(r["cfg"])
         table.setdefault((r["cfg"]["task"], view, ctx), []).append(rows)
         if ctx == "train":
             trained.setdefault((r["cfg"]["task"], view), []).append(training_of(r))
@@ -597,19 +642,7 @@ def write_contexts(patterns, out_dir, levels=LEVELS, episodes=20, jobs=1, log=pr
         cells = [f"{m:.2f} ({lo:.2f}-{hi:.2f})" if len(sr) > 1 else f"{m:.2f}"
                  for m, lo, hi in zip(sr.mean(0), sr.min(0), sr.max(0))]
         md.append(f"| {task} | {view} | {ctx} | {len(seeds)} | {' | '.join(cells)} | {cr.mean():.1f} | {goal} |")
-    md += ["", f"## Families of scenes, held out", "", f"Each family (`scene.FAMILIES`) draws a scene from a seed; each "
-           f"of the {episodes} trials of a run meets a scene of its own, from seeds that training never draws "
-           f"(`--context FAMILY:test`). Success rate at {FAMILY_MM:g} mm, mean over seeds (min-max); training's "
-           "column is the table's above.", "",
-           "| task | view | seeds | train | " + " | ".join(sim.FAMILIES) + " |", "|---" * (4 + len(sim.FAMILIES)) + "|"]
-    for (task, view), by_family in sorted(families.items(), key=lambda kv: (kv[0][0], not kv[0][1].startswith(VIEWS["task"]), kv[0][1])):
-        train = [rows[list(levels).index(FAMILY_MM)]["success_rate"] for rows in table.get((task, view, "train"), [])
-                 if FAMILY_MM in levels]
-        cell = lambda x: f"{np.mean(x):.2f} ({min(x):.2f}-{max(x):.2f})" if len(x) > 1 else f"{x[0]:.2f}" if x else "-"  # noqa: E731
-        seeds = max(len(x) for x in by_family.values())
-        md.append(f"| {task} | {view} | {seeds} | {cell(train)} | " + " | ".join(cell(by_family.get(f, []))
-                                                                                     for f in sim.FAMILIES) + " |")
-    md += ["", "The families (ranges in `scene.py`, ours): " + "; ".join(f"`{f}`: {FAMILY_WHAT[f]}" for f in sim.FAMILIES) + "."]
+    md += ["", "## Families of scenes, held out", ""] + family_section(runs, episodes, jobs, log)
     md += ["", "Training (each run stops when learned, at most its --train-episodes; one trained on since, with "
            "`--resume DIR --train-episodes N --stop-held 0`, says where it had first finished):", ""]
     md += [f"- {task}, {view}: {', '.join(v)}" for (task, view), v in sorted(trained.items())]
@@ -672,6 +705,8 @@ def main(argv=None):
     ap.add_argument("--out", default="docs", help="where the report is written (default: docs)")
     ap.add_argument("--contexts", action="store_true", help="evaluate ours and its full view in every context "
                     "instead, to --out/CONTEXTS.md (Fig. 12)")
+    ap.add_argument("--families", action="store_true", help="evaluate ours and its full view in the families of "
+                    "scenes alone instead, to --out/FAMILIES.md")
     ap.add_argument("--compare", default="", metavar="NAME", help="a table and curves of the runs by learning setting "
                     "instead, to --out/NAME.md and NAME.png")
     ap.add_argument("--jobs", type=int, default=1, help="processes for --contexts' evaluations (one torch thread each)")
@@ -686,6 +721,8 @@ def main(argv=None):
         write_compare(a.runs, a.out, a.compare)
     elif a.contexts:
         write_contexts(a.runs, a.out, jobs=a.jobs)
+    elif a.families:
+        write_families(a.runs, a.out, jobs=a.jobs)
     else:
         write_report(a.runs, a.out)
 
