@@ -226,14 +226,14 @@ def family_context(family, seed, task="peg"):
 
 def _draw_place(rng):
     """Another place and turn of the board on the table, clear of the workcell's boxes by 1 cm."""
-    t = np.array(Context().board_xy)
+    t, g = np.array(Context().board_xy), np.linspace(-BOARD_HALF, BOARD_HALF, 7)
+    grid = np.stack(np.meshgrid(g, g), -1).reshape(-1, 2)                    # the board's footprint, its frame
     while True:
         xy = rng.uniform((PLACE_X[0], PLACE_Y[0]), (PLACE_X[1], PLACE_Y[1]))
         yaw = rng.uniform(-PLACE_YAW, PLACE_YAW)
         if not PLACE_RING[0] <= np.linalg.norm(xy - t) <= PLACE_RING[1]:
             continue
-        g = np.linspace(-BOARD_HALF, BOARD_HALF, 7)
-        pts = xy + np.stack(np.meshgrid(g, g), -1).reshape(-1, 2) @ ctl.rot_z(yaw)[:2, :2].T     # the board's footprint
+        pts = xy + grid @ ctl.rot_z(yaw)[:2, :2].T
         if not any(np.all(np.abs(pts - np.array(c[:2])) < np.array(he[:2]) + 0.01, 1).any() for he, c, _ in WORKCELL):
             return {"board_xy": _floats(xy), "board_yaw": round(float(yaw), 4)}
 
@@ -259,12 +259,13 @@ def _draw_parts(rng, task):
     """PARTS_PER_SCENE parts at random spots of the board (its frame), beyond the tool's reach and off the
     mating gear, each whole on the board."""
     out, n = [], rng.integers(PARTS_PER_SCENE[0], PARTS_PER_SCENE[1] + 1)
+    gear = GEAR_R_TIP + 0.002                                             # a gear's tips and 2 mm
+    reach = BUMP_R_MAX if task == "peg" else gear
     while len(out) < n:
         he = LOOSE_PARTS[rng.integers(len(LOOSE_PARTS))]
         r = np.hypot(he[0], he[1])                                        # the part's footprint radius
         xy = rng.uniform(-BOARD_HALF + r, BOARD_HALF - r, 2)
-        reach = BUMP_R_MAX if task == "peg" else GEAR_R_TIP + 0.002
-        if np.linalg.norm(xy) < reach + r or (task == "gear" and np.hypot(xy[0] - GEAR_CENTRES, xy[1]) < GEAR_R_TIP + 0.002 + r):
+        if np.linalg.norm(xy) < reach + r or (task == "gear" and np.hypot(xy[0] - GEAR_CENTRES, xy[1]) < gear + r):
             continue
         if any(np.hypot(*np.subtract(xy, o[1])) < r + np.hypot(*o[0][:2]) for o in out):   # parts do not overlap
             continue

@@ -120,6 +120,13 @@ def roi_box(world, x_i, board_pose, e_r, e_rot, directions, margin=8):
     return float(lo[0]), float(lo[1]), float(hi[0]), float(hi[1])
 
 
+def randomize_problem(randomize, context):
+    """What is wrong with training scenes drawn from the families `randomize` in `context` ('' if nothing)."""
+    if set(randomize) - set(FAMILIES) or (randomize and context != "train"):
+        return f"families among {', '.join(FAMILIES)}, in the training context"
+    return ""
+
+
 def preset_roi(name, centre, scale=1.0):
     """The ablation's fixed windows (height x width in px of the full view, times `scale`) around `centre` (u, v)."""
     hgt, wid = (min(CAM_FULL, round(n * scale)) for n in ROI_PRESETS[name])
@@ -199,8 +206,8 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
         if task not in ("peg", "gear"):
             raise ValueError(f"unknown task {task!r} (peg, gear)")
         ctx = context_of(context, task)                       # ValueError for a name that is none
-        if set(randomize) - set(FAMILIES) or (randomize and context != "train"):
-            raise ValueError(f"randomize {randomize!r}: families among {', '.join(FAMILIES)}, in the training context")
+        if randomize_problem(randomize, context):
+            raise ValueError(f"randomize {tuple(randomize)!r}: {randomize_problem(randomize, context)}")
         if roi != "task" and roi not in ROI_PRESETS:
             raise ValueError(f"unknown roi {roi!r} (task, {', '.join(ROI_PRESETS)})")
         if render_mode not in (None, "rgb_array"):

@@ -415,9 +415,9 @@ def check(cfg):
             (cfg.eval == "two-step" and cfg.task != "peg", "--eval two-step is the peg-in-hole baseline (Table 1)"),
             (not cfg.eval and cfg.context.endswith(":test"), f"--context {cfg.context} draws held-out scenes: it is "
                                                              "for --eval (training draws its own with --randomize)"),
-            (set(randomized(cfg)) - set(sim.FAMILIES) or (cfg.randomize and cfg.context != "train"),
-             f"--randomize takes families among {', '.join(sim.FAMILIES)}, comma-separated, in the training "
-             f"context, not {cfg.randomize!r}" + (f" with --context {cfg.context}" if cfg.context != "train" else "")),
+            (sim.randomize_problem(randomized(cfg), cfg.context),           # as the env checks it, before any work
+             f"--randomize takes {sim.randomize_problem(randomized(cfg), cfg.context)}, comma-separated, not "
+             f"{cfg.randomize!r}" + (f" with --context {cfg.context}" if cfg.context != "train" else "")),
             (cfg.obs == "ts-ptk" and cfg.task != "peg", "--obs ts-ptk (keypoint RL) finds the peg board's hole; the "
                                                         "gear's shaft is no keypoint it finds (Table 1 is the peg's)"),
             (cfg.critic != "multimodal" and (cfg.critic_extra, cfg.next_encoder, cfg.actor_encoder, cfg.aux_reward,

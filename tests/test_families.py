@@ -22,18 +22,15 @@ def test_a_seed_is_one_scene_and_seeds_differ(family):
 
 
 def test_held_out_scenes_and_training_scenes_never_meet(monkeypatch):
-    seen, real = [], scene.family_context
-    monkeypatch.setattr(sim, "family_context", lambda family, seed, task: seen.append((family, seed)) or real(family, seed, task))
+    seen, real = {}, scene.family_context
     with sim.AssemblyEnv("peg", "light:test", image=False) as held_out, \
             sim.AssemblyEnv("peg", randomize=("light", "colour"), image=False) as randomized:
         for env, kind in ((held_out, "test"), (randomized, "train")):
-            seen.clear()
+            monkeypatch.setattr(sim, "family_context", lambda family, seed, task, drawn=seen.setdefault(kind, []):
+                                drawn.append((family, seed)) or real(family, seed, task))
             for ep in range(6):
                 env.scene_rng = np.random.default_rng([ep, 1])       # as reset(seed=ep) seeds it
                 env._episode_context()
-            if kind == "test":
-                seen_test = list(seen)
-    seen = {"test": seen_test, "train": seen}
     assert all(f == "light" and s >= scene.FAMILY_TEST_SEED0 for f, s in seen["test"])
     assert all(f in ("light", "colour") and s < scene.FAMILY_TEST_SEED0 for f, s in seen["train"])
     assert len(set(seen["test"])) == 6 and len({f for f, _ in seen["train"]}) == 2

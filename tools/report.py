@@ -572,12 +572,12 @@ def family_section(runs, episodes, jobs, log):
     log(f"  {len(runs)} runs x {len(sim.FAMILIES)} families at {FAMILY_MM:g} mm, {len(jobs_list) * episodes} episodes "
         f"in {jobs} processes (cached ones are read back)")
     families = {}              # (task, view) -> {'train' or a family: [SR at FAMILY_MM of each seed]}
+    for r in runs:
+        families.setdefault((r["cfg"]["task"], view_of(r["cfg"])), {}).setdefault("train", []).extend(
+            x["success_rate"] for x in r["eval"]["rows"] if x["error_mm"] == FAMILY_MM)
     for (d, ctx, _, _), rows in zip(jobs_list, evaluate_jobs(jobs_list, jobs)):
         r = next(r for r in runs if r["dir"] == d)
-        by_family = families.setdefault((r["cfg"]["task"], view_of(r["cfg"])), {})
-        by_family.setdefault(ctx.split(":")[0], []).append(rows[0]["success_rate"])
-        if ctx.startswith(sim.FAMILIES[0]):
-            by_family.setdefault("train", []).extend(x["success_rate"] for x in r["eval"]["rows"] if x["error_mm"] == FAMILY_MM)
+        families[(r["cfg"]["task"], view_of(r["cfg"]))].setdefault(ctx.split(":")[0], []).append(rows[0]["success_rate"])
     md = [f"Each family (`scene.FAMILIES`) draws a scene from a seed; each of the {episodes} trials of a run meets a "
           "scene of its own, from seeds that training never draws (`--context FAMILY:test`). Success rate at "
           f"{FAMILY_MM:g} mm, mean over seeds (min-max); train: the run's eval.json (the same evaluation seeds).", "",
