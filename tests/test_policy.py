@@ -24,11 +24,12 @@ def fake_obs(rng, n=None, kinds=("image", "pose_hist", "wrench_hist")):
     return {k: o[k] for k in kinds}
 
 
-@pytest.mark.parametrize("kind,dim,norm", [("ts-ptv", 18, "joint"), ("ts-pt", 12, "joint"), ("pt", 12, "joint"),
-                                           ("v", 6, "joint"), ("ts-ptk", 18, "joint"), ("ts-ptk", 18, "modality"),
-                                           ("ts-ptv", 18, "modality")])
-def test_encoder_fusion_sizes_and_modalities(kind, dim, norm):
-    enc = policy.Encoder(kind, norm=norm)
+@pytest.mark.parametrize("kind,dim,norm,image", [
+    ("ts-ptv", 18, "joint", "cnn"), ("ts-pt", 12, "joint", "cnn"), ("pt", 12, "joint", "cnn"), ("v", 6, "joint", "cnn"),
+    ("ts-ptk", 18, "joint", "cnn"), ("ts-ptk", 18, "modality", "cnn"), ("ts-ptv", 18, "modality", "cnn"),
+    ("ts-ptv", 18, "modality", "spatial"), ("v", 6, "joint", "spatial")])
+def test_encoder_fusion_sizes_and_modalities(kind, dim, norm, image):
+    enc = policy.Encoder(kind, norm=norm, image=image)
     o = {k: torch.as_tensor(v) for k, v in fake_obs(np.random.default_rng(0), 5, ("image", "keypoint", "pose_hist",
                                                                                      "wrench_hist")).items()}
     z = enc(o)
@@ -244,10 +245,29 @@ def test_the_papers_critics_with_extras_and_the_online_next_encoder_update(norm)
     assert sac.act(fake_obs(rng)).shape == (6,)            # the actor reads no 'extra'
 
 
-def test_a_saved_policy_keeps_its_encoders_layout(tmp_path):
+@pytest.mark.parametrize("image", policy.IMAGE_ENCODERS)
+def test_a_saved_policy_keeps_its_encoders_layout(tmp_path, image):
     torch.manual_seed(0)
-    sac = policy.SAC("ts-ptv", norm="modality", own_actor_encoder=True)
+    sac = policy.SAC("ts-ptv", norm="modality", own_actor_encoder=True, image=image)
     policy.save_policy(str(tmp_path / "p.pt"), sac, {"task": "peg", "obs": "ts-ptv"})
     pi = policy.TrainedPolicy(policy.load_file(str(tmp_path / "p.pt")))
     obs = fake_obs(np.random.default_rng(0))
     np.testing.assert_array_equal(pi(obs), sac.act(obs, deterministic=True))
+
+
+def test_spatial_softmax_keypoints_follow_what_moves_in_the_image():
+    # a bright square on a dark image, moved 12 px right: a sharp softmax's keypoints of the channels that peak on it
+    # move right by 12 px in the map's [-1, 1] units and not down; a square that stays leaves every keypoint where it was
+    torch.manual_seed(0)
+    enc = policy.SpatialImageEncoder()
+    with torch.no_grad():
+        enc.log_temp.fill_(np.log(0.01))
+    img = np.zeros((3, 80, 80), np.uint8)
+    img[0, 30:40, 20:30] = img[1, 30:40, 32:42] = img[2, 30:40, 20:30] = 255
+    kp = enc.keypoints(torch.as_tensor(img)).detach().numpy()           # (3, K, 2)
+    n = enc.grid.shape[0] ** 0.5                                           # the map's side (12, strides 3 x 2)
+    moved = kp[1] - kp[0]
+    peaked = np.abs(moved[:, 0] - 12 / 6 * 2 / (n - 1)) < 0.05             # channels that track the square
+    assert peaked.sum() >= 2
+    np.testing.assert_allclose(moved[peaked, 1], 0, atol=0.05)
+    np.testing.assert_allclose(kp[2], kp[0], atol=1e-6)
