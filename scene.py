@@ -273,6 +273,12 @@ def _draw_parts(rng, task):
     return tuple(out)
 
 
+def held_out_family(name):
+    """The family of --context FAMILY:test (a held-out scene each episode, the env's to draw), else None."""
+    family, _, which = name.partition(":")
+    return family if which == "test" and family in FAMILIES else None
+
+
 def context_of(name, task="peg"):
     """--context's value -> a Context: a name in CONTEXTS, or FAMILY:SEED (one scene of a family). ValueError
     for anything else; FAMILY:test (a held-out scene each episode) is the env's to draw."""
@@ -281,7 +287,7 @@ def context_of(name, task="peg"):
     family, _, seed = name.partition(":")
     if family in FAMILIES and seed.isdigit():
         return family_context(family, int(seed), task)
-    if family in FAMILIES and seed == "test":
+    if held_out_family(name):
         return family_context(family, FAMILY_TEST_SEED0, task)     # the first held-out scene, until the env draws
     raise ValueError(f"unknown context {name!r} ({', '.join(CONTEXTS)}, or FAMILY:SEED or FAMILY:test with FAMILY "
                      f"one of {', '.join(FAMILIES)})")
@@ -289,8 +295,7 @@ def context_of(name, task="peg"):
 
 def context_key(name, task="peg"):
     """What --context `name` stands for, as text: a cache's key (a context or a family redefined is evaluated again)."""
-    family, _, which = name.partition(":")
-    if which == "test":
+    if held_out_family(name):
         return repr((name, task, FAMILY_TEST_SEED0, PLACE_RING, PLACE_X, PLACE_Y, PLACE_YAW, LIGHT_ELEVATION, LIGHT_AMBIENT,
                      LIGHT_DIFFUSE, KELVIN_RGB, TABLE_VALUE, BOARD_VALUE, MAX_SATURATION, LOOSE_PARTS, PART_COLOURS,
                      PARTS_PER_SCENE, BOARD_HALF))

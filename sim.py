@@ -24,8 +24,8 @@ import numpy as np
 
 import control as ctl
 from scene import (APPROACH, CAM_FULL, CLEAR, CONTEXTS, CONTROL_HZ, CONTROL_PER_POLICY, FAMILIES, FAMILY_TEST_SEED0, FT_RANGE,
-                   IMG, POLICY_HZ, R_DOWN, World, context_of, family_context, full_projection, project, task_features,
-                   to_world)
+                   IMG, POLICY_HZ, R_DOWN, World, context_of, family_context, full_projection, held_out_family, project,
+                   task_features, to_world)
 
 try:                   # optional: the env is a gymnasium.Env where gymnasium is installed
     import gymnasium
@@ -302,8 +302,8 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
     def _episode_context(self):
         """This episode's scene: the context's, a held-out scene of its family (FAMILY:test), or a training scene
         of the randomized families."""
-        family, _, which = self.context.partition(":")
-        if which == "test":
+        family = held_out_family(self.context)
+        if family:
             return family_context(family, FAMILY_TEST_SEED0 + int(self.scene_rng.integers(FAMILY_TEST_SEED0)), self.task)
         if self.randomize:
             family = self.randomize[self.scene_rng.integers(len(self.randomize))]

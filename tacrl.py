@@ -415,7 +415,7 @@ def check(cfg):
             (cfg.eval and cfg.eval not in baselines.NAMES and not os.path.isfile(cfg.eval),
              f"--eval must be {', '.join(baselines.NAMES)} or an existing policy.pt file, not {cfg.eval!r}"),
             (cfg.eval == "two-step" and cfg.task != "peg", "--eval two-step is the peg-in-hole baseline (Table 1)"),
-            (not cfg.eval and cfg.context.endswith(":test"), f"--context {cfg.context} draws held-out scenes: it is "
+            (not cfg.eval and scene.held_out_family(cfg.context), f"--context {cfg.context} draws held-out scenes: it is "
                                                              "for --eval (training draws its own with --randomize)"),
             (sim.randomize_problem(randomized(cfg), cfg.context),           # as the env checks it, before any work
              f"--randomize takes {sim.randomize_problem(randomized(cfg), cfg.context)}, comma-separated, not "

@@ -577,7 +577,7 @@ def family_section(runs, episodes, jobs, log):
             x["success_rate"] for x in r["eval"]["rows"] if x["error_mm"] == FAMILY_MM)
     for (d, ctx, _, _), rows in zip(jobs_list, evaluate_jobs(jobs_list, jobs)):
         r = next(r for r in runs if r["dir"] == d)
-        families[(r["cfg"]["task"], view_of(r["cfg"]))].setdefault(ctx.split(":")[0], []).append(rows[0]["success_rate"])
+        families[(r["cfg"]["task"], view_of(r["cfg"]))].setdefault(scene.held_out_family(ctx), []).append(rows[0]["success_rate"])
     md = [f"Each family (`scene.FAMILIES`) draws a scene from a seed; each of the {episodes} trials of a run meets a "
           "scene of its own, from seeds that training never draws (`--context FAMILY:test`). Success rate at "
           f"{FAMILY_MM:g} mm, mean over seeds (min-max); train: the run's eval.json (the same evaluation seeds).", "",
