@@ -56,14 +56,29 @@ def mlp(n_in, n_out, hidden=(256, 256)):
 
 
 # ---------------------------------------------------------------- the multimodal encoder
+IMAGE_NORMS = ("fixed", "image")
+
+
+def pixels(img, norm="fixed"):
+    """(B, 80, 80) uint8 -> (B, 1, 80, 80) float: x / 255 - 0.5 (fixed), or (image, ours) each image minus its mean
+    over its standard deviation (+ one grey level, for a flat image), so that light or paint that scales and shifts the grey
+    levels leaves the input as it was: the normalisation of normalised cross-correlation, a classic of template
+    matching under changing light (e.g. Lewis 1995)."""
+    x = img.unsqueeze(1).float() / 255.0
+    if norm == "image":
+        return (x - x.mean((2, 3), keepdim=True)) / (x.std((2, 3), keepdim=True) + 1 / 255)
+    return x - 0.5
+
+
 class ImageEncoder(nn.Module):
     """3-layer CNN, growing kernels and strides: (B, 1, 80, 80) -> (B, 8, 26, 26) -> (B, 16, 8, 8)
     -> (B, 32, 1, 1) -> (B, 6). The last kernel spans the whole 8 x 8 map, so every pixel of the
     image reaches the feature (a 6 x 6 kernel left the bottom and right 19 rows unseen). Small on
     purpose: on 2 CPU cores its backward pass is most of an update (bench/bench_sac.py)."""
 
-    def __init__(self, img=80):
+    def __init__(self, img=80, norm="fixed"):
         super().__init__()
+        self.norm = norm
         self.conv = nn.Sequential(nn.Conv2d(1, 8, 4, stride=3), nn.ReLU(),
                                   nn.Conv2d(8, 16, 5, stride=3), nn.ReLU(),
                                   nn.Conv2d(16, 32, 8, stride=4), nn.ReLU(), nn.Flatten())
@@ -72,7 +87,7 @@ class ImageEncoder(nn.Module):
         self.fc = nn.Linear(n, FEAT)
 
     def forward(self, img):                  # img: (B, 80, 80) uint8
-        return self.fc(self.conv(img.unsqueeze(1).float() / 255.0 - 0.5))
+        return self.fc(self.conv(pixels(img, self.norm)))
 
 
 class SpatialImageEncoder(nn.Module):
@@ -82,8 +97,9 @@ class SpatialImageEncoder(nn.Module):
     (B, 1, 80, 80) -> (B, 8, 26, 26) -> (B, K, 12, 12) -> (B, 2K) x, y in [-1, 1] -> (B, 6). (A 24 x 24 map, the
     second convolution at stride 1, cost 1.4x the CNN's update time; at stride 2 it costs what the CNN does.)"""
 
-    def __init__(self, img=80, k=16):
+    def __init__(self, img=80, norm="fixed", k=16):
         super().__init__()
+        self.norm = norm
         self.conv = nn.Sequential(nn.Conv2d(1, 8, 4, stride=3), nn.ReLU(), nn.Conv2d(8, k, 3, stride=2))
         with torch.no_grad():
             h, w = self.conv(torch.zeros(1, 1, img, img)).shape[-2:]
@@ -93,7 +109,7 @@ class SpatialImageEncoder(nn.Module):
         self.fc = nn.Linear(2 * k, FEAT)
 
     def keypoints(self, img):                # img: (B, 80, 80) uint8 -> (B, K, 2), x right and y down in [-1, 1]
-        h = self.conv(img.unsqueeze(1).float() / 255.0 - 0.5).flatten(2)             # (B, K, h w)
+        h = self.conv(pixels(img, self.norm)).flatten(2)                             # (B, K, h w)
         return torch.softmax(h / self.log_temp.exp(), -1) @ self.grid                 # each map's softmax, sums to 1
 
     def forward(self, img):
@@ -121,20 +137,21 @@ class Encoder(nn.Module):
     readings by these so that the inputs are of order 1 (the env's error range and F_max)."""
 
     def __init__(self, kind="ts-ptv", pose_scale=np.ones(6), wrench_scale=np.ones(6), img=80, norm="joint",
-                 image="cnn"):
+                 image="cnn", image_norm="fixed"):
         super().__init__()
-        if image not in IMAGE_ENCODERS:
-            raise ValueError(f"unknown image encoder {image!r} ({', '.join(IMAGE_ENCODERS)})")
+        if image not in IMAGE_ENCODERS or image_norm not in IMAGE_NORMS:
+            raise ValueError(f"unknown image encoder {image!r} ({', '.join(IMAGE_ENCODERS)}) or normalisation "
+                             f"{image_norm!r} ({', '.join(IMAGE_NORMS)})")
         if kind not in OBS_KINDS:
             raise ValueError(f"unknown observation kind {kind!r} ({', '.join(OBS_KINDS)})")
-        self.kind, self.norm_kind, self.image_kind = kind, norm, image
+        self.kind, self.norm_kind, self.image_kind, self.image_norm = kind, norm, image, image_norm
         self.register_buffer("pose_scale", torch.as_tensor(np.asarray(pose_scale), dtype=torch.float32))
         self.register_buffer("wrench_scale", torch.as_tensor(np.asarray(wrench_scale), dtype=torch.float32))
         if kind == "pt":
             self.now = mlp(12, 2 * FEAT, (64,))
         elif kind != "v":
             self.series = SeriesEncoder()
-        self.image = IMAGE_ENCODERS[image](img) if kind in ("ts-ptv", "v") else None
+        self.image = IMAGE_ENCODERS[image](img, image_norm) if kind in ("ts-ptv", "v") else None
         # ts-ptk (keypoint RL): obs['keypoint'] (B, 4), the hole found in the image by a detector, in place of the CNN
         self.keypoint = mlp(4, FEAT, (32,)) if kind == "ts-ptk" else None
         self.out_dim = {"ts-ptv": 3 * FEAT, "ts-ptk": 3 * FEAT, "v": FEAT}.get(kind, 2 * FEAT)
@@ -317,13 +334,14 @@ class SAC:
     def __init__(self, obs_kind="ts-ptv", pose_scale=np.ones(6), wrench_scale=np.ones(6), act_dim=6,
                  lr=3e-4, gamma=0.95, tau=0.005, init_alpha=0.1, target_entropy=None, state_dim=0, device="cpu",
                  extra_dim=0, target_encoder=True, norm="joint", own_actor_encoder=False, aux_reward=0.0,
-                 aux_state=0.0, image="cnn"):
+                 aux_state=0.0, image="cnn", image_norm="fixed"):
         self.device, self.gamma, self.tau = torch.device(device), gamma, tau
         # the paper's critics lend the actor their encoder, unless it has one of its own (as it always has with
         # privileged critics), trained through the actor loss
         self.shared = not state_dim and not own_actor_encoder
         self.extra_dim, self.target_encoder = extra_dim, target_encoder
-        enc = lambda: Encoder(obs_kind, pose_scale, wrench_scale, norm=norm, image=image).to(self.device)  # noqa: E731
+        enc = lambda: Encoder(obs_kind, pose_scale, wrench_scale, norm=norm, image=image,  # noqa: E731
+                              image_norm=image_norm).to(self.device)
         self.enc = StateEncoder(state_dim, pose_scale, wrench_scale).to(self.device) if state_dim else enc()
         self.q = TwinQ(self.enc.out_dim + extra_dim, act_dim).to(self.device)
         self.enc_targ, self.q_targ = copy.deepcopy(self.enc), copy.deepcopy(self.q)
@@ -472,7 +490,8 @@ def save_policy(path, sac, meta):
     """policy.pt: the actor and the encoder it reads (the critics stay behind), and meta, a dict of
     plain values that evaluation must know of training ('obs' among them: the encoder's kind)."""
     save_atomic({"format": POLICY_FORMAT, **meta, "norm": sac.actor_enc.norm_kind,
-                 "image_encoder": sac.actor_enc.image_kind, "encoder": sac.actor_enc.state_dict(),
+                 "image_encoder": sac.actor_enc.image_kind, "image_norm": sac.actor_enc.image_norm,
+                 "encoder": sac.actor_enc.state_dict(),
                  "actor": sac.actor.state_dict()}, path)
 
 
@@ -485,8 +504,9 @@ class TrainedPolicy:
             raise ValueError("not a tacrl policy file")
         self.meta = {k: v for k, v in d.items() if k not in ("format", "encoder", "actor")}
         self.device = device
-        # (files before 'norm' and 'image_encoder': joint, cnn)
-        self.encoder = Encoder(d["obs"], norm=d.get("norm", "joint"), image=d.get("image_encoder", "cnn")).to(device).eval()
+        # (files before 'norm', 'image_encoder' and 'image_norm': joint, cnn, fixed)
+        self.encoder = Encoder(d["obs"], norm=d.get("norm", "joint"), image=d.get("image_encoder", "cnn"),
+                               image_norm=d.get("image_norm", "fixed")).to(device).eval()
         self.encoder.load_state_dict(d["encoder"])
         self.actor = Actor(self.encoder.out_dim).to(device).eval()
         self.actor.load_state_dict(d["actor"])

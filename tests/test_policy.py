@@ -29,7 +29,7 @@ def fake_obs(rng, n=None, kinds=("image", "pose_hist", "wrench_hist")):
     ("ts-ptk", 18, "joint", "cnn"), ("ts-ptk", 18, "modality", "cnn"), ("ts-ptv", 18, "modality", "cnn"),
     ("ts-ptv", 18, "modality", "spatial"), ("v", 6, "joint", "spatial")])
 def test_encoder_fusion_sizes_and_modalities(kind, dim, norm, image):
-    enc = policy.Encoder(kind, norm=norm, image=image)
+    enc = policy.Encoder(kind, norm=norm, image=image, image_norm="image" if image == "spatial" else "fixed")
     o = {k: torch.as_tensor(v) for k, v in fake_obs(np.random.default_rng(0), 5, ("image", "keypoint", "pose_hist",
                                                                                      "wrench_hist")).items()}
     z = enc(o)
@@ -245,10 +245,10 @@ def test_the_papers_critics_with_extras_and_the_online_next_encoder_update(norm)
     assert sac.act(fake_obs(rng)).shape == (6,)            # the actor reads no 'extra'
 
 
-@pytest.mark.parametrize("image", policy.IMAGE_ENCODERS)
-def test_a_saved_policy_keeps_its_encoders_layout(tmp_path, image):
+@pytest.mark.parametrize("image,image_norm", [("cnn", "fixed"), ("cnn", "image"), ("spatial", "fixed")])
+def test_a_saved_policy_keeps_its_encoders_layout(tmp_path, image, image_norm):
     torch.manual_seed(0)
-    sac = policy.SAC("ts-ptv", norm="modality", own_actor_encoder=True, image=image)
+    sac = policy.SAC("ts-ptv", norm="modality", own_actor_encoder=True, image=image, image_norm=image_norm)
     policy.save_policy(str(tmp_path / "p.pt"), sac, {"task": "peg", "obs": "ts-ptv"})
     pi = policy.TrainedPolicy(policy.load_file(str(tmp_path / "p.pt")))
     obs = fake_obs(np.random.default_rng(0))
@@ -271,3 +271,13 @@ def test_spatial_softmax_keypoints_follow_what_moves_in_the_image():
     assert peaked.sum() >= 2
     np.testing.assert_allclose(moved[peaked, 1], 0, atol=0.05)
     np.testing.assert_allclose(kp[2], kp[0], atol=1e-6)
+
+
+def test_an_image_standardised_by_itself_reads_the_same_under_other_light():
+    # a dimmer light or darker paint that scales and shifts the grey levels (x -> a x + b): the standardised input is
+    # as it was, to a tenth of its spread (rounding to uint8), and the fixed one is not
+    img = np.random.default_rng(0).integers(60, 160, (2, 80, 80)).astype(np.float64)
+    other = np.clip(np.rint(0.5 * img + 10), 0, 255)
+    for norm, same in (("image", True), ("fixed", False)):
+        a, b = (policy.pixels(torch.as_tensor(x.astype(np.uint8)), norm) for x in (img, other))
+        assert bool((a - b).abs().max() < 0.1 * a.std()) == same, norm
