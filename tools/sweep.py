@@ -41,9 +41,10 @@ EXPERIMENTS = {
     "gear-roi": [["--task", "gear", "--roi", r, *BUDGET(200)] for r in ("task", "full", "300", "200", "100x160")],
     "contexts": [["--task", t, "--roi", r] for t in ("peg", "gear") for r in ("task", "full")],  # stop when learned
     # beyond the paper: the families of scenes (report.py --contexts), the paper's method against photometric
-    # jitter and training scenes drawn from the families (places stay held out)
+    # jitter, training scenes drawn from the families (places stay held out), and those with each image standardised
     "robust": [["--task", t, "--roi", r, *o] for t in ("peg", "gear") for r in ("task", "full")
-               for o in ([], ["--augment", "0.4"], ["--randomize", "light,colour,parts"])],
+               for o in ([], ["--augment", "0.4"], ["--randomize", "light,colour,parts"],
+                         ["--randomize", "light,colour,parts", "--image-norm", "image"])],
 }
 PROJECT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
