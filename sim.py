@@ -206,8 +206,9 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
         if task not in ("peg", "gear"):
             raise ValueError(f"unknown task {task!r} (peg, gear)")
         ctx = context_of(context, task)                       # ValueError for a name that is none
-        if randomize_problem(randomize, context):
-            raise ValueError(f"randomize {tuple(randomize)!r}: {randomize_problem(randomize, context)}")
+        problem = randomize_problem(randomize, context)
+        if problem:
+            raise ValueError(f"randomize {tuple(randomize)!r}: {problem}")
         if roi != "task" and roi not in ROI_PRESETS:
             raise ValueError(f"unknown roi {roi!r} (task, {', '.join(ROI_PRESETS)})")
         if render_mode not in (None, "rgb_array"):

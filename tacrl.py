@@ -414,14 +414,14 @@ def check(cfg):
     except ValueError:
         levels = []
     e_r_max = max(cfg.error_mm, sim.E_R_FINAL * 1000)      # the training env's largest range (ROI, X_i), mm
+    randomize = sim.randomize_problem(randomized(cfg), cfg.context)      # as the env checks it, before any work
     for bad, msg in [
             (cfg.eval and cfg.eval not in baselines.NAMES and not os.path.isfile(cfg.eval),
              f"--eval must be {', '.join(baselines.NAMES)} or an existing policy.pt file, not {cfg.eval!r}"),
             (cfg.eval == "two-step" and cfg.task != "peg", "--eval two-step is the peg-in-hole baseline (Table 1)"),
             (not cfg.eval and scene.held_out_family(cfg.context), f"--context {cfg.context} draws held-out scenes: it is "
                                                              "for --eval (training draws its own with --randomize)"),
-            (sim.randomize_problem(randomized(cfg), cfg.context),           # as the env checks it, before any work
-             f"--randomize takes {sim.randomize_problem(randomized(cfg), cfg.context)}, comma-separated, not "
+            (randomize, f"--randomize takes {randomize}, comma-separated, not "
              f"{cfg.randomize!r}" + (f" with --context {cfg.context}" if cfg.context != "train" else "")),
             (cfg.obs == "ts-ptk" and cfg.task != "peg", "--obs ts-ptk (keypoint RL) finds the peg board's hole; the "
                                                         "gear's shaft is no keypoint it finds (Table 1 is the peg's)"),
