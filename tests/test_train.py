@@ -357,3 +357,20 @@ def test_every_context_is_evaluated_once_and_the_table_names_each(tiny_run, tmp_
     monkeypatch.setitem(sim.CONTEXTS, "loc-2", scene.Context(board_xy=(0.6, -0.2), board_yaw=0.3))
     with pytest.raises(pytest.fail.Exception, match="evaluated again"):
         report.write_contexts(tiny_run["dir"], str(out), levels=(1.0,), episodes=1, log=lambda *_: None)
+
+
+def test_a_run_trained_in_the_families_scenes_is_tested_on_their_held_out_seeds_alone(tiny_run, tmp_path, monkeypatch):
+    # the named backgrounds are of the kinds a --randomize run has met: CONTEXTS.md shows it in the families only
+    monkeypatch.setattr(sim, "MAX_STEPS", SHORT)
+    monkeypatch.setattr(sim, "FAMILIES", ("light",))
+    run = tmp_path / "rand"
+    shutil.copytree(tiny_run["dir"], run, ignore=shutil.ignore_patterns("eval-ctx-*", "replay"))
+    cfg = json.loads((run / "config.json").read_text())
+    (run / "config.json").write_text(json.dumps({**cfg, "randomize": "light"}))
+    asked = []
+    real_rows = report.context_rows
+    monkeypatch.setattr(report, "context_rows", lambda job: asked.append(job[1]) or real_rows(job))
+    report.write_contexts(str(run), str(tmp_path / "docs"), levels=(1.0,), episodes=1, log=lambda *_: None)
+    text = (tmp_path / "docs" / "CONTEXTS.md").read_text()
+    assert asked == ["light:test"] and "randomize light" in text and "| loc-" not in text
+    assert "appears in the families alone" in text
