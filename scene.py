@@ -285,10 +285,8 @@ def context_of(name, task="peg"):
     if name in CONTEXTS:
         return CONTEXTS[name]
     family, _, seed = name.partition(":")
-    if family in FAMILIES and seed.isdigit():
-        return family_context(family, int(seed), task)
-    if held_out_family(name):
-        return family_context(family, FAMILY_TEST_SEED0, task)     # the first held-out scene, until the env draws
+    if family in FAMILIES and (seed.isdigit() or seed == "test"):   # test: the first held-out scene, until the env draws
+        return family_context(family, int(seed) if seed.isdigit() else FAMILY_TEST_SEED0, task)
     raise ValueError(f"unknown context {name!r} ({', '.join(CONTEXTS)}, or FAMILY:SEED or FAMILY:test with FAMILY "
                      f"one of {', '.join(FAMILIES)})")
 
