@@ -139,9 +139,10 @@ class Encoder(nn.Module):
     def __init__(self, kind="ts-ptv", pose_scale=np.ones(6), wrench_scale=np.ones(6), img=80, norm="joint",
                  image="cnn", image_norm="fixed"):
         super().__init__()
-        if image not in IMAGE_ENCODERS or image_norm not in IMAGE_NORMS:
-            raise ValueError(f"unknown image encoder {image!r} ({', '.join(IMAGE_ENCODERS)}) or normalisation "
-                             f"{image_norm!r} ({', '.join(IMAGE_NORMS)})")
+        if image not in IMAGE_ENCODERS:
+            raise ValueError(f"unknown image encoder {image!r} ({', '.join(IMAGE_ENCODERS)})")
+        if image_norm not in IMAGE_NORMS:
+            raise ValueError(f"unknown image normalisation {image_norm!r} ({', '.join(IMAGE_NORMS)})")
         if kind not in OBS_KINDS:
             raise ValueError(f"unknown observation kind {kind!r} ({', '.join(OBS_KINDS)})")
         self.kind, self.norm_kind, self.image_kind, self.image_norm = kind, norm, image, image_norm
