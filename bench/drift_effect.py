@@ -17,7 +17,6 @@ import torch
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "tools"))
 import evaluate  # noqa: E402
-import legacy  # noqa: E402
 import baselines  # noqa: E402
 import report  # noqa: E402
 import scene  # noqa: E402
@@ -40,9 +39,9 @@ def main():
             task, seed, pi = a.task, 0, None
             levels = (0.0, a.error_mm) if name == "initial" else (a.error_mm,)
         else:
-            cfg = report.load_run(name)["cfg"]
-            task, seed = cfg["task"], cfg["seed"]
-            pi = legacy.load_policy(os.path.join(name, "policy.pt"), task)
+            run = report.load_run(name)
+            task, seed = run["cfg"]["task"], run["cfg"]["seed"]
+            pi = report.load_policy(run)
             levels = (a.error_mm,)
         for mm in levels:
             cells = []

@@ -11,7 +11,6 @@ import torch
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "tools"))
 import evaluate  # noqa: E402
-import legacy  # noqa: E402
 import report  # noqa: E402
 import scene  # noqa: E402
 import sim  # noqa: E402
@@ -28,7 +27,7 @@ def main():
     torch.set_num_threads(1)
     run = report.load_run(a.run_dir)
     cfg, ctx = run["cfg"], sim.CONTEXTS[a.context]
-    act = legacy.load_policy(os.path.join(run["dir"], "policy.pt"), cfg["task"])
+    act = report.load_policy(run)
     sim.CONTEXTS["place only"] = scene.Context(board_xy=ctx.board_xy, board_yaw=0.0)
     sim.CONTEXTS["turn only"] = scene.Context(board_yaw=ctx.board_yaw)
     print(f"{a.run_dir}, {a.error_mm:g} mm, {a.episodes} held-out trials: SR, mean cumulative reward")

@@ -216,7 +216,7 @@ def test_the_liftable_modules_need_only_numpy_and_torch_and_the_core_no_plotting
         assert module_imports(name) - set(sys.stdlib_module_names) <= {"numpy", "torch"}, name
     core = ("tacrl", "sim", "scene", "evaluate", "rundir", "baselines", "control", "curriculum", "policy")
     for name in core:           # matplotlib only inside rundir.plot_curves; tools/ is never imported
-        assert not module_imports(name) & {"matplotlib", "report", "figures", "seeds", "legacy", "tensorboard"}, name
+        assert not module_imports(name) & {"matplotlib", "report", "figures", "seeds", "tensorboard"}, name
 
 
 def test_random_shift_moves_each_image_by_at_most_pad_pixels_repeating_its_edges():

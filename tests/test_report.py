@@ -1,13 +1,9 @@
 """report.py's bookkeeping: which of the paper's comparisons a run joins, the command that reproduces
-it, and runs written before issue 18 (those archived in results/) read through legacy.py."""
+it."""
 import dataclasses
-import json
 
-import numpy as np
 import pytest
-import torch
 
-import legacy
 import report
 import tacrl
 
@@ -40,24 +36,15 @@ def test_report_command_of_a_run():
     assert tacrl.parse_args(report.command_of(cfg).split()[2:]).vanilla
 
 
-def test_runs_of_the_older_formats_read_through_the_legacy_shims(tmp_path):
-    # as the runs archived in results/ before issue 18 were written: options since removed (at their 'off'
-    # values) or moved to seeds.py and report.py in config.json; the policy's encoder under 'actor_enc'
-    (tmp_path / "config.json").write_text(json.dumps({**dataclasses.asdict(tacrl.Config()), "aux_weight": 0.0,
-                                                      "prior_weight": 0.0, "seeds": "0,1", "archive": ""}))
-    sac = tacrl.make_sac(tacrl.Config(), "cpu")
-    old = {"format": "tacrl-policy-1", "task": "peg", "obs": "ts-ptv", "roi": "task", "vanilla": False, "ex_r": 0.02,
-           "e_r_max": 0.02, "enc": sac.enc.state_dict(), "actor_enc": sac.actor_enc.state_dict(),
-           "actor": sac.actor.state_dict()}
-    torch.save(old, tmp_path / "policy.pt")
-    assert legacy.read_config(str(tmp_path)) == tacrl.Config()
-    pi = legacy.load_policy(str(tmp_path / "policy.pt"), "peg")
-    assert pi.meta["roi"] == "task" and "enc" not in pi.meta
-    obs = {"image": np.zeros((80, 80), np.uint8), "pose_hist": np.zeros((32, 6), np.float32),
-           "wrench_hist": np.zeros((32, 6), np.float32)}
-    assert np.allclose(pi(obs), sac.act(obs, deterministic=True))     # the actor's own encoder, not the critics'
-
-
-def test_a_run_that_used_a_removed_option_is_refused():
-    with pytest.raises(ValueError, match="aux-weight"):
-        legacy.upgrade_config({"task": "peg", "aux_weight": 1.0})
+@pytest.mark.parametrize("changes, episodes, expected", [
+    ({}, 200, set()),                                                  # stopped when learned: a budget of its own
+    ({"stop_held": 0, "train_episodes": 200}, 200, {"methods", "roi"}),   # Table 1 and Fig. 11: 200 episodes
+    ({"stop_held": 0, "train_episodes": 200}, 150, set()),                  # not finished
+    ({"stop_held": 0, "train_episodes": 192}, 192, set()),                  # another budget
+    ({"stop_held": 0, "train_episodes": 300}, 300, {"curriculum"}),        # Fig. 10: 300 episodes
+    ({"stop_held": 0, "train_episodes": 300, "curriculum": "none", "error_mm": 30.0}, 300, {"curriculum"}),
+])
+def test_a_comparison_takes_the_runs_of_its_budget_alone(changes, episodes, expected):
+    """Every row of one of the paper's comparisons trained the same number of episodes, as the paper's rows."""
+    run = {"cfg": {**dataclasses.asdict(tacrl.Config()), **changes}, "m": {"episode": list(range(1, episodes + 1))}}
+    assert set(report.fam_of(run)) == expected

@@ -194,7 +194,8 @@ def test_report_is_written_from_an_archive(tiny_run, tmp_path):
     assert tacrl.command("report", lambda: report.main([str(results / "*"), "--out", str(docs)])) == 0
     text = (docs / "RESULTS.md").read_text()
     assert str(results / "run") in text and "Table 1" in text and "Table 2" in text
-    assert "| two-step | - | 0.50 | 10.00 +- 1.00 |" in text
+    assert "| two-step (visual servo, spiral search) | - | 0.50 | 10.00 +- 1.00 |" in text
+    assert "| ours (TA-MRP + adaptive curriculum) | | not run in this world |" in text    # not 200 episodes: not a row
     assert "(at 1 mm)" in text               # its levels are named: not the usual 5/10/15/20
     assert (docs / "fig-peg-runs.png").stat().st_size > 0 and not (docs / "fig-peg-obs.png").exists()
     assert f"all made in world {sim.WORLD}" in text
@@ -215,15 +216,12 @@ def test_table2_rows_are_evaluated_once_per_world_and_context(tiny_run, tmp_path
     assert not said and train == run["eval"]["rows"]            # the training context's rows: eval.json's
     loc = report.eval_cached(run, "loc-2", levels=(1.0,), episodes=1, log=said.append)
     assert len(said) == 1 and report.eval_cached(run, "loc-2", levels=(1.0,), episodes=1, log=said.append) == loc
-    cache = next(d.glob("eval-loc-2*.json"))
-    assert report.read_world_cache(str(cache)) == (sim.WORLD, loc) and len(said) == 1
-    report.write_world_cache(str(cache), sim.WORLD - 1, loc)      # another world's rows: evaluated again
+    cache = d / "eval-ctx-loc-2.json"                             # the cache report.py --contexts fills too
+    assert json.loads(cache.read_text())["world"] == sim.WORLD and len(said) == 1
+    cache.write_text(json.dumps({**json.loads(cache.read_text()), "world": sim.WORLD - 1}))  # another world's rows
     report.eval_cached(run, "loc-2", levels=(1.0,), episodes=1, log=said.append)
-    assert len(said) == 2 and report.read_world_cache(str(cache))[0] == sim.WORLD
-    old = {**run, "eval": {**run["eval"], "world": None}}          # a run of an older world: its own cache, or nothing
-    cache.write_text(json.dumps(loc))                              # a cache of before the world key: the unversioned world's
-    assert report.eval_cached(old, "loc-2", levels=(1.0,), episodes=1, log=said.append) == loc and len(said) == 2
-    cache.unlink()
+    assert len(said) == 2 and json.loads(cache.read_text())["world"] == sim.WORLD       # evaluated again
+    old = {**run, "eval": {**run["eval"], "world": None}}          # a run of an older world: never evaluated here
     with pytest.raises(report.ArgError, match="made in world unversioned"):
         report.eval_cached(old, "loc-2", levels=(1.0,), episodes=1, log=said.append)
 

@@ -6,8 +6,8 @@ lives on the machine that trained it (its checkpoint and replay are hundreds of 
 copies what the report reads (under 1 MB a run) to results/, which the repository keeps, so the
 report can be regenerated from a fresh clone:
 
-    python tools/report.py --archive "runs/*"       # finished runs -> results/<run name>/
-    python tools/report.py "results/*"              # -> docs/RESULTS.md, docs/fig-*.png
+    python tools/report.py --archive "runs/table1/*" --to results/table1    # finished runs -> results/table1/<run>/
+    python tools/report.py                           # results/{table1,contexts,gear-*} -> docs/RESULTS.md, fig-*.png
 
 It evaluates what it needs and has not got yet (the two-step baseline, the unseen contexts) and
 caches those rows beside the runs. docs/results-notes.md, the hand-written reading of the numbers,
@@ -33,9 +33,9 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__)))) 
 import baselines  # noqa: E402
 import evaluate  # noqa: E402
 import figures  # noqa: E402
-import legacy  # noqa: E402
 import rundir  # noqa: E402
 import scene  # noqa: E402
+import sweep  # noqa: E402
 import sim  # noqa: E402
 import tacrl  # noqa: E402
 from tacrl import ArgError  # noqa: E402
@@ -50,20 +50,31 @@ PAPER_TABLE1 = {"two-step": "0.533, 19.00 +- 5.75, 13.21 / 13.22 / 9.78",
 # Table 2 (real robot), success rate at 5/10/15/20 mm: the rows that the paper's layout pins down
 PAPER_TABLE2 = {("peg", "train"): "1.00 / 1.00 / 1.00 / 0.80", ("peg", "loc-1"): "1.00 / 1.00 / 0.90 / 0.75",
                 ("gear", "train"): "1.00 / 1.00 / 0.95 / 0.70"}
+TABLE1_ROWS = {"vanilla": "vanilla RL (`--vanilla`: no base policy)", "visual": "visual RL (`--obs v`)",
+               VISUAL_PAPER_CRITICS: "visual RL, the paper's critics", "keypoint": "keypoint RL (`--obs ts-ptk`)",
+               "ours": "ours (TA-MRP + adaptive curriculum)", "two-step": "two-step (visual servo, spiral search)"}
 UNSEEN = ("loc-1", "loc-2")     # our stand-ins for Table 2's 'unseen 1' and 'unseen 2': the real board at two other places
+TABLE2_LABELS = {"train": "training context", "loc-1": "unseen 1 (`loc-1`)", "loc-2": "unseen 2 (`loc-2`)"}
 FIG12_CONTEXTS = ("loc-1", "bg-objects")   # Fig. 12's: another location, another background (objects beside the board)
+FIG12_LABELS = {"train": "training context", "loc-1": "new location", "bg-objects": "new background"}
+ABLATIONS = {"gear-obs": "Fig. 9, observations (P-T, time-series P-T, time-series P-T-V; 200 episodes)",
+             "gear-curriculum": "Fig. 10, curricula (adaptive, g2-c30, g2-c10, g2-c2, none; 300 episodes)",
+             "gear-roi": "Fig. 11, ROI windows (task attention, full, 300, 200, 100x160; 200 episodes)"}
 # Fig. 12 is the simulation's (Sec. 5.1.4, the gear ablations), scored by the average cumulative reward
 PAPER_FIG12 = ("The paper (simulation, the gear's ROI ablation, Fig. 12, average cumulative reward): task attention "
                "61.19 -> 54.73 (new background), 69.23 -> 46.46 (new location); full view 61.12 -> -23.06 and 59.51 -> -14.65.")
 LEVELS = (5.0, 10.0, 15.0, 20.0)
 OBS_NAMES = {"pt": "P-T", "ts-pt": "Time-series P-T", "ts-ptv": "Time-series P-T-V"}
-FAMILIES = {   # family: (title, curves, the paper's figure)
-    "methods": ("ours against the learned baselines", ("return", "sr15", "e_r_mm"), "Table 1"),
-    "obs": ("observation ablation: Ex_r held at 10 mm, E_r adaptive", ("sr15", "e_r_mm"), "Fig. 9"),
-    "curriculum": ("curriculum ablation", ("return", "sr15", "e_r_mm", "ex_r_mm"), "Fig. 10"),
-    "roi": ("ROI ablation", ("return", "sr15", "e_r_mm"), "Fig. 11"),
+FAMILIES = {   # family: (title, curves, the paper's figure, the episodes each of its runs trains: the paper's budget)
+    "methods": ("ours against the learned baselines", ("return", "sr15", "e_r_mm"), "Table 1", 200),
+    "obs": ("observation ablation: Ex_r held at 10 mm, E_r adaptive", ("sr15", "e_r_mm"), "Fig. 9", 200),
+    "curriculum": ("curriculum ablation", ("return", "sr15", "e_r_mm", "ex_r_mm"), "Fig. 10", 300),
+    "roi": ("ROI ablation", ("return", "sr15", "e_r_mm"), "Fig. 11", 200),
 }
 RESULTS_DIR = "results"       # the archived runs the report is built from; the repository keeps them
+# what each report reads by default: an experiment's runs lie in results/<experiment of tools/sweep.py>/
+REPORT_RUNS = ",".join(f"{RESULTS_DIR}/{e}/*" for e in ("table1", "contexts", *ABLATIONS))
+CONTEXT_RUNS = f"{RESULTS_DIR}/contexts/*,{RESULTS_DIR}/robust/*"
 ARCHIVED = ("config.json", "metrics.csv", "policy.pt", "curves.png", "train.log")    # and eval*.json
 
 
@@ -89,13 +100,25 @@ def write_world_cache(path, world, value):
 def load_run(d):
     """A run dir as {'dir', 'cfg' (config dict), 'm' ({metrics column: array}), 'eval' (eval.json or None)}."""
     try:
-        cfg = asdict(legacy.read_config(d))
+        cfg = asdict(tacrl.read_config(d))
         ev = read_json(os.path.join(d, "eval.json")) if os.path.exists(os.path.join(d, "eval.json")) else None
         metrics = rundir.read_metrics(d)
         m = {k: np.array(metrics[k]) for k in ("episode", "return", "success", "sr15", "e_r_mm", "ex_r_mm", "elapsed_s")}
     except (OSError, ValueError, KeyError, TypeError) as e:
         raise ArgError(f"{d}: a damaged run directory ({tacrl.describe(e)})")
     return {"dir": d, "cfg": cfg, "m": m, "eval": ev}
+
+
+def load_policy(run):
+    """A run's policy.pt (ArgError where it is not one, or is another task's)."""
+    path = os.path.join(run["dir"], "policy.pt")
+    try:
+        pi = evaluate.load_policy(path)
+    except ValueError as e:
+        raise ArgError(f"{path}: {e}")
+    if pi.meta["task"] != run["cfg"]["task"]:
+        raise ArgError(f"{path}: a {pi.meta['task']} policy in a {run['cfg']['task']} run")
+    return pi
 
 
 def method_of(cfg):
@@ -129,6 +152,15 @@ def command_of(cfg):
     return " ".join(flags)
 
 
+def fam_of(run):
+    """The paper's comparisons a run is a row of: families() where it trained the comparison's budget (FAMILIES,
+    --stop-held 0), as the paper's rows do. A run stopped when learned, as the quickstart's, or trained for another
+    number of episodes, is a row of none (Table 2, Fig. 12 and CONTEXTS.md take those)."""
+    cfg = run["cfg"]
+    return {f: label for f, label in families(cfg).items()
+            if cfg["stop_held"] == 0 and cfg["train_episodes"] == FAMILIES[f][3] == len(run["m"]["episode"])}
+
+
 def families(cfg):
     """The paper's comparisons a run takes part in: {figure family: curve label}. Only runs with
     the default learning settings (method_of without a suffix) are compared."""
@@ -154,30 +186,17 @@ def families(cfg):
 
 
 def eval_cached(run, context, levels=LEVELS, episodes=20, log=print):
-    """Table-2 rows of a run's policy in `context`, of the run's own world: the training context's from eval.json
-    when it holds the same levels, else from the run dir's cache of that world, else evaluated now and cached with
-    the world's version, which only this code's world can do (ArgError for a run of an older world: its rows
-    would be another world's). A cache of before the world key (a list of rows) is of the unversioned world."""
-    cfg = run["cfg"]
-    act = legacy.load_policy(os.path.join(run["dir"], "policy.pt"), cfg["task"])
-    plan = [(mm, round(sim.exploration_range(mm / 1000, act.meta["ex_r"]) * 1000, 3)) for mm in levels]   # (E_r, Ex_r), mm
-    tag = "" if tuple(levels) == LEVELS else "-" + "-".join(f"{mm:g}" for mm in levels) + "mm"
-    path = os.path.join(run["dir"], f"eval-{context}{tag}.json")
-    run_world = run["eval"].get("world") if run["eval"] else sim.WORLD
-    cached = read_world_cache(path)
-    for world, rows in ([(run_world, run["eval"]["rows"])] if context == "train" and run["eval"] else []) + \
-            ([cached] if cached[1] else []):                                       # eval.json, then the cache
-        if world == run_world and [(r["error_mm"], r.get("ex_r_mm")) for r in rows] == plan and rows[0]["episodes"] == episodes:
-            return rows
-    if run_world != sim.WORLD:
-        raise ArgError(f"{run['dir']} was made in world {run_world or 'unversioned'}: its rows in {context} at "
-                       f"{', '.join(f'{mm:g}' for mm in levels)} mm were not kept, and this code (world {sim.WORLD}) "
-                       "would make another world's")
-    log(f"  evaluating {run['dir']} in {context} at {', '.join(f'{mm:g}' for mm in levels)} mm")
-    with evaluate.eval_env(cfg["task"], act, context, cfg["roi"], cfg["clearance_mm"]) as env:
-        rows = evaluate.evaluate_levels(env, act, levels, episodes, evaluate.EVAL_SEED + cfg["seed"])
-    write_world_cache(path, sim.WORLD, rows)
-    return rows
+    """A run's rows in `context` at `levels` (mm), of its own world: the training context's from eval.json where it
+    holds them, else context_rows' cache in the run dir (the one report.py --contexts fills), else evaluated now,
+    which only a run of this code's world can be (ArgError for an older one: its rows would be another world's)."""
+    ev = run["eval"]
+    if context == "train" and ev and ev.get("world") == sim.WORLD and ev["rows"][0]["episodes"] == episodes \
+            and [r["error_mm"] for r in ev["rows"]] == list(levels):
+        return ev["rows"]
+    if ev and ev.get("world") != sim.WORLD:
+        raise ArgError(f"{run['dir']} was made in world {ev.get('world') or 'unversioned'}: this code (world "
+                       f"{sim.WORLD}) would evaluate it in another world")
+    return context_rows((run["dir"], context, tuple(levels), episodes), log)
 
 
 def cell(row, k, f="{:.2f}"):
@@ -203,7 +222,7 @@ def record_episode(run, error_mm=10.0, seed=0):
     the image and its saliency, the image features, X - X_g, the wrench, the action and the phase (0 free
     motion, 1 search after contact, 2 insertion). Returns (record, success)."""
     cfg = run["cfg"]
-    act = legacy.load_policy(os.path.join(run["dir"], "policy.pt"), cfg["task"])
+    act = load_policy(run)
     rec = {k: [] for k in ("image", "saliency", "image_features", "goal_offset", "f_world", "action", "phase")}
 
     def policy_step(obs):                       # the policy, recording what it sees, where it looks and what it does
@@ -250,7 +269,7 @@ def same_run(d, to):
     cfgs, rows = [], []
     try:
         for x in (d, to):
-            cfgs.append({k: v for k, v in asdict(legacy.read_config(x)).items()   # (flags added since: defaults)
+            cfgs.append({k: v for k, v in asdict(tacrl.read_config(x)).items()   # (flags added since: defaults)
                          if k not in (*tacrl.RESUME_MAY_SET, "run_dir")})        # (a run dir may move)
             with open(os.path.join(x, "metrics.csv")) as f:
                 rows.append(list(csv.DictReader(f)))
@@ -312,8 +331,9 @@ def write_report(patterns, out_dir="docs", log=print):
     for f in os.listdir(out_dir):          # an earlier report's figures, which these runs may not redraw
         if f.startswith("fig-") and f.endswith(".png"):
             os.remove(os.path.join(out_dir, f))
-    md = ["# Results", "", f"Regenerated by `python tools/report.py \"{patterns}\"` from {len(runs)} run "
-          f"directories, all made in {f'world {world}' if world else 'a world older than the versioned ones (before issue 21)'}. "
+    command = "python tools/report.py" + ("" if patterns == REPORT_RUNS else f" \"{patterns}\"")
+    md = ["# Results", "", f"Regenerated by `{command}` from {len(runs)} run directories, all made in "
+          + (f"world {world} ({sim.WORLD_WHAT})" if world == sim.WORLD else f"world {world or 'unversioned'}") + ". "
           "Every number below was measured by running this code on a 2-core CPU machine; "
           "the paper's numbers stand beside ours. How the world and the method came to be as they are, "
           "and what each change did to the results, is told in [HISTORY.md](HISTORY.md).", "", "## The runs", "",
@@ -327,9 +347,13 @@ def write_report(patterns, out_dir="docs", log=print):
         md.append(f"| `{r['dir']}` | `{command_of(r['cfg'])}` | {method_of(r['cfg'])} | "
                   f"{len(r['m']['episode'])} | {r['m']['elapsed_s'][-1] / 60:.1f} ({r['cfg'].get('threads') or 'all'}) | "
                   f"{r['m']['e_r_mm'][-1]:.1f} | {r['m']['e_r_mm'].max():.1f} | {srs} |")
-    # -- Table 1: peg at 20 mm
-    md += ["", "## Table 1: peg-in-hole at 20 mm error (20 trials, evaluation seeds never used in training)", "",
-           "| method | training episodes | SR | CT (s) | peak contact force x / y / z (N) | cumulative reward | "
+    # -- Table 1: peg at 20 mm, every learned row after the paper's budget
+    md += ["", "## Table 1: peg-in-hole at 20 mm error", "",
+           f"Every learned row trained {FAMILIES['methods'][3]} episodes (`--train-episodes {FAMILIES['methods'][3]} --stop-held 0`), as "
+           "the paper's; 20 trials a seed on evaluation seeds never used in training. Over seeds: SR mean +- std of the "
+           "seeds' success rates, CT mean +- std of their mean completion times (s), force and reward the means of "
+           "theirs (peak contact force per axis, N). A run trained otherwise is not in this table.", "",
+           "| method | seeds | SR | CT (s) | peak contact force x / y / z (N) | cumulative reward | "
            "paper: SR, CT, force x/y/z |", "|---|---|---|---|---|---|---|"]
     path = os.path.join(out_dir, "two-step-peg-20mm.json")     # the two-step row, kept with its world
     ts_world, ts_row = read_world_cache(path)
@@ -341,48 +365,55 @@ def write_report(patterns, out_dir="docs", log=print):
         write_world_cache(path, world, ts_row)
     table1 = [("two-step", [ts_row] if ts_row else [], "-")]
     for name in ("vanilla", "visual", VISUAL_PAPER_CRITICS, "keypoint", "ours"):
-        done = [r for r in runs if r["cfg"]["task"] == "peg" and method_of(r["cfg"]) == name and r["eval"]]
+        done = [r for r in runs if r["cfg"]["task"] == "peg" and method_of(r["cfg"]) == name and r["eval"]
+                and fam_of(r).get("methods")]
         rows = [row for r in done for row in r["eval"]["rows"] if row["error_mm"] == 20.0]
-        table1.append((name, rows, ", ".join(sorted({str(len(r["m"]["episode"])) for r in done}))))
-    for name, rows, episodes in table1:
+        if done or name != VISUAL_PAPER_CRITICS:          # the paper's critics' visual row: only where it was run
+            table1.append((name, rows, ", ".join(str(r["cfg"]["seed"]) for r in done)))
+    for name, rows, seeds in table1:
         if not rows:
-            md.append(f"| {name} | | not run | | | | {PAPER_TABLE1[name]} |")
+            md.append(f"| {TABLE1_ROWS.get(name, name)} | | not run in this world | | | | {PAPER_TABLE1[name]} |")
             continue
-        sr = np.array([x["success_rate"] for x in rows])
-        if len(rows) == 1:
-            ct = cell(rows[0], "completion_time_s")
-        else:                              # the seeds' mean completion times, averaged
-            cts = [x["completion_time_s"][0] for x in rows if x["completion_time_s"]]
-            ct = f"{np.mean(cts):.2f} (mean of seeds)" if cts else "-"
-        fx = " / ".join(f"{np.mean([x[k][0] for x in rows]):.2f}"
-                        for k in ("contact_force_x_N", "contact_force_y_N", "contact_force_z_N"))
-        cr = f"{np.mean([x['cumulative_reward'][0] for x in rows]):.1f}"
-        srs = f"{sr.mean():.2f}" + (f" +- {sr.std():.2f} ({len(rows)} seeds)" if len(rows) > 1 else "")
-        md.append(f"| {name} | {episodes} | {srs} | {ct} | {fx} | {cr} | {PAPER_TABLE1[name]} |")
-    # -- Table 2: ours in the training and unseen contexts
+        over = lambda k: np.array([x[k][0] for x in rows if x[k]])     # noqa: E731  (each seed's mean)
+        sr, ct = np.array([x["success_rate"] for x in rows]), over("completion_time_s")
+        pm = lambda a: "-" if not len(a) else f"{a.mean():.2f}" + (f" +- {a.std():.2f}" if len(rows) > 1 else "")  # noqa: E731
+        ct_cell = cell(rows[0], "completion_time_s") if len(rows) == 1 else pm(ct)
+        fx = " / ".join(f"{over(k).mean():.2f}" for k in ("contact_force_x_N", "contact_force_y_N", "contact_force_z_N"))
+        md.append(f"| {TABLE1_ROWS.get(name, name)} | {seeds} | {pm(sr)} | {ct_cell} | {fx} | "
+                  f"{over('cumulative_reward').mean():.1f} | {PAPER_TABLE1[name]} |")
+    # -- Table 2: ours, trained as the quickstart trains, in the training context and two unseen ones
     md += ["", "## Table 2: our policy in the training context and two unseen ones", "",
-           "Success rate / completion time (s) / cumulative reward at 5, 10, 15, 20 mm error, 20 trials each.", "",
-           "| task | context | 5 mm | 10 mm | 15 mm | 20 mm | paper SR (real robot) |", "|---|---|---|---|---|---|---|"]
+           "Ours trained as the quickstart trains (stopped when learned), tested at another two places of the board, "
+           "as the paper's two unseen contexts are (its Table 2, on the real robot): SR / CT (s) at each error, mean over "
+           "seeds, 20 trials a seed. Their runs and every other context: [CONTEXTS.md](CONTEXTS.md).", "",
+           "| task | context | seeds | 5 mm | 10 mm | 15 mm | 20 mm | paper SR (real robot) |", "|---|---|---|---|---|---|---|---|"]
     for task in ("peg", "gear"):
-        ours = [r for r in runs if r["cfg"]["task"] == task and method_of(r["cfg"]) == "ours" and r["eval"]]
+        ours = [r for r in runs if r["cfg"]["task"] == task and method_of(r["cfg"]) == "ours" and r["eval"]
+                and not fam_of(r)]
         if not ours:
-            md.append(f"| {task} | - | not run | | | | |")
+            md.append(f"| {task} | - | | not run in this world | | | | |")
             continue
-        best = ours[0]                      # the first seed stands for the method in the unseen contexts
         for ctx in ("train",) + UNSEEN:
-            try:
-                rows = eval_cached(best, ctx, log=log)
-            except ArgError:                # a run of an older world, never evaluated there: no row of today's world
-                md.append(f"| {task} | {ctx} | not evaluated in the run's world, which this code cannot make | | | | "
-                          f"{PAPER_TABLE2.get((task, ctx), '-')} |")
-                continue
-            cells = [f"{x['success_rate']:.2f} / {cell(x, 'completion_time_s', '{:.1f}').split(' +-')[0]} / "
-                     f"{x['cumulative_reward'][0]:.1f}" for x in rows if x["error_mm"] in LEVELS]
-            md.append(f"| {task} | {ctx} | {' | '.join(cells)} | {PAPER_TABLE2.get((task, ctx), '-')} |")
+            per_seed = [eval_cached(r, ctx, log=log) for r in ours]             # [seed][level]
+            cells = [f"{np.mean([rows[i]['success_rate'] for rows in per_seed]):.2f} / "
+                     f"{np.mean([rows[i]['completion_time_s'][0] for rows in per_seed if rows[i]['completion_time_s']]):.1f}"
+                     for i in range(len(LEVELS))]
+            md.append(f"| {task} | {TABLE2_LABELS[ctx]} | {len(ours)} | {' | '.join(cells)} | "
+                      f"{PAPER_TABLE2.get((task, ctx), '-')} |")
+    # -- the ablations (Figs. 9-11): what has been run in this world, and how to run the rest
+    md += ["", "## The ablations (the paper's Figs. 9-11, on the gear)", "",
+           "Each row of an ablation trains for the same number of episodes, 3 seeds; the curves are under Figures."]
+    for exp, what in ABLATIONS.items():
+        planned = [os.path.basename(tacrl.default_run_dir(tacrl.Config(**tacrl.parse(tacrl.Config, [*row, "--seed", str(s)], ""))))
+                   for row in sweep.EXPERIMENTS[exp] for s in (0, 1, 2)]
+        have = [r for r in runs if fam_of(r) and r["eval"] and os.path.basename(r["dir"]) in planned]
+        md.append(f"- {what}: {len(have)} of {len(planned)} runs finished in this world" +
+                  ("" if len(have) == len(planned) else f"; the rest: `python tools/sweep.py {exp} --seeds 0,1,2`, then "
+                   f"`python tools/report.py --archive \"runs/{exp}/*\" --to results/{exp}`") + ".")
     # -- curriculum ablation (Fig. 10) in numbers: how soon each run reached its final range, how it did there
     for task in ("peg", "gear"):
-        fam = sorted(((families(r["cfg"])["curriculum"], r) for r in runs if r["cfg"]["task"] == task
-                      and "curriculum" in families(r["cfg"]) and r["eval"]), key=lambda x: x[0])
+        fam = sorted(((fam_of(r)["curriculum"], r) for r in runs if r["cfg"]["task"] == task
+                      and "curriculum" in fam_of(r) and r["eval"]), key=lambda x: x[0])
         if len({label for label, _ in fam}) < 2:
             continue
         md += ["", f"## Curriculum ablation, {task} (the paper's Fig. 10)", "",
@@ -413,45 +444,50 @@ def write_report(patterns, out_dir="docs", log=print):
             name = f"fig-{task}-runs.png"
             figures.plot_groups(groups, ("sr15", "e_r_mm"), os.path.join(out_dir, name), f"{task}: every run")
             figs.append((name, f"{task}: every run, grouped by method and setting"))
-        for fam, (title, keys, paper_fig) in FAMILIES.items():
+        for fam, (title, keys, paper_fig, _) in FAMILIES.items():
             groups = {}
             for r in runs:
-                label = families(r["cfg"]).get(fam)
+                label = fam_of(r).get(fam)
                 if r["cfg"]["task"] == task and label:
                     groups.setdefault(label, []).append(r)
             if not groups or (fam != "methods" and len(groups) < 2):
                 continue
             name = f"fig-{task}-{fam}.png"
             figures.plot_groups(groups, keys, os.path.join(out_dir, name), f"{task}: {title}")
-            figs.append((name, f"{task}, {title} (the paper's {paper_fig}): mean over seeds, 95% bootstrap band "
-                               "where there are several"))
-    # -- context generalization (Fig. 12): task-attention ROI against the full view, mean cumulative reward
+            figs.append((name, f"{task}, {title} (the paper's {paper_fig}), every row at the same budget: mean over "
+                               "seeds, 95% bootstrap band where there are several"))
+    # -- context generalization (Fig. 12): task attention against the full view, trained as the quickstart trains
     for task in ("peg", "gear"):
         bars = {}
-        for roi in ("task", "full"):
-            r = next((r for r in runs if r["cfg"]["task"] == task and r["eval"]
-                      and families(r["cfg"]).get("roi") and r["cfg"]["roi"] == roi), None)
-            if r is None:
-                continue
-            bars[families(r["cfg"])["roi"]] = by_ctx = {}
-            for ctx in ("train",) + FIG12_CONTEXTS:
-                cr = np.array([x["cumulative_reward"][0] for x in eval_cached(r, ctx, log=log)])
-                by_ctx[ctx] = [float(cr.mean()), float(cr.std())]
+        for roi, label in VIEWS.items():
+            seeds = [r for r in runs if r["cfg"]["task"] == task and r["eval"] and not fam_of(r)
+                     and families(r["cfg"]).get("roi") and r["cfg"]["roi"] == roi]
+            if seeds:                      # each seed's mean cumulative reward over the levels and trials; bars over seeds
+                cr = {ctx: [np.mean([x["cumulative_reward"][0] for x in eval_cached(r, ctx, log=log)]) for r in seeds]
+                      for ctx in ("train",) + FIG12_CONTEXTS}
+                bars[f"{label} ({len(seeds)} seeds)"] = {FIG12_LABELS[c]: [float(np.mean(v)), float(np.std(v))]
+                                                         for c, v in cr.items()}
         if len(bars) == 2:
             name = f"fig-{task}-contexts.png"
-            figures.plot_context_bars(bars, os.path.join(out_dir, name), f"{task}: training context and two unseen ones")
-            figs.append((name, f"{task}: mean cumulative reward over 5/10/15/20 mm (20 trials each) in the training "
-                               "context and two unseen ones, task-attention ROI against the full view (the paper's "
-                               "Fig. 12; bars: spread over the four error ranges)"))
+            figures.plot_context_bars(bars, os.path.join(out_dir, name), f"{task}: the training context and two unseen ones")
+            figs.append((name, f"{task}: mean cumulative reward per episode over 5/10/15/20 mm (20 trials each) in the "
+                               "training context, a new location and a new background, task attention against the full "
+                               "view (the paper's Fig. 12; bars: spread over seeds)"))
             figures.plot_views(task, ("task", "full"), ("train",) + FIG12_CONTEXTS, os.path.join(out_dir, f"fig-{task}-views.png"))
             figs.append((f"fig-{task}-views.png", f"{task}: what the policy sees at the start of an episode in each "
                                                   "context, through the task-attention ROI and the full view"))
+            labels = list(FIG12_LABELS.values())
             md += ["", f"## Context generalization, {task} (the paper's Fig. 12)", "",
-                   "Mean cumulative reward per episode over 5/10/15/20 mm, 20 trials each.", "",
-                   "| ROI | " + " | ".join(("train",) + FIG12_CONTEXTS) + " |", "|---" * (1 + len(FIG12_CONTEXTS) + 1) + "|"]
-            md += [f"| {roi} | " + " | ".join(f"{v[ctx][0]:.1f}" for ctx in v) + " |" for roi, v in bars.items()]
+                   "Task attention trained as the quickstart trains (stopped when learned), the full view as long as its "
+                   "twin of the same seed, or stopped when learned; mean cumulative reward per episode over "
+                   "5/10/15/20 mm, 20 trials each, mean +- std over seeds. New location: `" + FIG12_CONTEXTS[0] +
+                   "`, new background: `" + FIG12_CONTEXTS[1] + "` (objects beside the board).", "",
+                   "| ROI | " + " | ".join(labels) + " |", "|---" * (1 + len(labels)) + "|"]
+            md += [f"| {roi} | " + " | ".join(f"{v[c][0]:.1f} +- {v[c][1]:.1f}" for c in labels) + " |" for roi, v in bars.items()]
             md += ["", PAPER_FIG12]
-    ours_peg = [r for r in runs if r["cfg"]["task"] == "peg" and method_of(r["cfg"]) == "ours" and r["eval"]]
+    ours_peg = [r for r in runs if r["cfg"]["task"] == "peg" and method_of(r["cfg"]) == "ours" and r["eval"]
+                and not fam_of(r)] or [r for r in runs if r["cfg"]["task"] == "peg"
+                                                    and method_of(r["cfg"]) == "ours" and r["eval"]]
     if ours_peg and world != sim.WORLD:     # an episode recorded now would be this code's world, not the runs'
         md += ["", f"Fig. 16 (one episode's behaviour) is recorded by this code, of world {sim.WORLD}: not drawn for "
                "runs of an older world."]
@@ -510,7 +546,7 @@ def describe(name):
     return "; ".join(what) or "the training scene"
 
 
-def context_rows(job):
+def context_rows(job, log=None):
     """One (run dir, context, levels, episodes) evaluation, cached in the run dir under the context's definition
     and the world's version (a context redefined, or another world, is evaluated again). Runs in a worker."""
     d, ctx, levels, episodes = job
@@ -521,8 +557,10 @@ def context_rows(job):
     cached = read_json(path) if os.path.exists(path) else {}
     if {k: v for k, v in cached.items() if k != "rows"} == key:
         return cached["rows"]
+    if log:
+        log(f"  evaluating {d} in {ctx} at {', '.join(f'{mm:g}' for mm in levels)} mm")
     run = load_run(d)
-    cfg, act = run["cfg"], legacy.load_policy(os.path.join(d, "policy.pt"), run["cfg"]["task"])
+    cfg, act = run["cfg"], load_policy(run)
     with evaluate.eval_env(cfg["task"], act, ctx, cfg["roi"], cfg["clearance_mm"]) as env:
         rows = evaluate.evaluate_levels(env, act, levels, episodes, evaluate.EVAL_SEED + cfg["seed"])
     with open(path, "w") as f:
@@ -704,7 +742,8 @@ def write_compare(patterns, out_dir, name, log=print):
 
 def main(argv=None):
     ap = tacrl.Parser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("runs", help="comma-separated glob patterns of run directories, e.g. 'results/*'")
+    ap.add_argument("runs", nargs="?", help=f"comma-separated glob patterns of run directories (default: {REPORT_RUNS}; "
+                    f"with --contexts or --families, {CONTEXT_RUNS})")
     ap.add_argument("--archive", action="store_true", help="copy the finished runs' small files to --to instead")
     ap.add_argument("--to", default=RESULTS_DIR, help=f"where --archive copies to (default: {RESULTS_DIR})")
     ap.add_argument("--out", default="docs", help="where the report is written (default: docs)")
@@ -718,6 +757,8 @@ def main(argv=None):
     a = ap.parse_args(argv)
     if a.jobs < 1:
         raise ArgError(f"--jobs must be at least 1, not {a.jobs}")
+    if a.runs is None and (a.archive or a.compare):
+        raise ArgError(f"--{'archive' if a.archive else 'compare'} takes the run directories, e.g. \"runs/*\"")
     if a.archive:
         archive_runs(a.runs, a.to)
     elif a.compare:
@@ -725,11 +766,11 @@ def main(argv=None):
             raise ArgError(f"--compare takes a file name of letters, digits, - and _, not {a.compare!r}")
         write_compare(a.runs, a.out, a.compare)
     elif a.contexts:
-        write_contexts(a.runs, a.out, jobs=a.jobs)
+        write_contexts(a.runs or CONTEXT_RUNS, a.out, jobs=a.jobs)
     elif a.families:
-        write_families(a.runs, a.out, jobs=a.jobs)
+        write_families(a.runs or CONTEXT_RUNS, a.out, jobs=a.jobs)
     else:
-        write_report(a.runs, a.out)
+        write_report(a.runs or REPORT_RUNS, a.out)
 
 
 if __name__ == "__main__":
