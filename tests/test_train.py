@@ -191,8 +191,11 @@ def test_report_is_written_from_an_archive(tiny_run, tmp_path):
            "episodes": 20}      # the two-step row's cache: evaluating the baseline takes a minute
     report.write_world_cache(str(docs / "two-step-peg-20mm.json"), sim.WORLD, row)
     (docs / "fig-peg-obs.png").write_bytes(b"an earlier report's figure, of runs this one has not got")
+    (docs / "results-notes.md").write_text("How they were made.\n\n## Other\n\nMore.\n\n## Table 1\n\nWhy it differs.\n")
     assert tacrl.command("report", lambda: report.main([str(results / "*"), "--out", str(docs)])) == 0
     text = (docs / "RESULTS.md").read_text()
+    at = {k: text.index(k) for k in ("## Table 1", "Why it differs.", "## Table 2", "How they were made.", "## Other\n\nMore.")}
+    assert at["## Table 1"] < at["Why it differs."] < at["## Table 2"] < at["How they were made."] < at["## Other\n\nMore."]
     assert str(results / "run") in text and "Table 1" in text and "Table 2" in text
     assert "| two-step (visual servo, spiral search) | - | 0.50 | 10.00 +- 1.00 |" in text
     assert "| ours (TA-MRP + adaptive curriculum) | | not run in this world |" in text    # not 200 episodes: not a row
