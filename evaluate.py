@@ -43,8 +43,13 @@ def eval_env(task, act, context="train", roi="task", clearance_mm=0.1, e_r_mm=0.
                            keypoint=m.get("obs") == "ts-ptk")
 
 
+def episode_seed(seed, k):
+    """The seed of evaluation episode k of an evaluation seeded `seed` (evaluate's; a replay of it uses the same)."""
+    return seed * 100003 + k
+
+
 def evaluate(env, act, episodes, seed, video=None, log=print):
-    """Roll out act(obs) -> action for `episodes` episodes (episode k's seed: seed * 100003 + k); returns the
+    """Roll out act(obs) -> action for `episodes` episodes (episode k's seed: episode_seed(seed, k)); returns the
     Table-1/2 row: success rate, completion time of the successful episodes (s), peak |contact force|
     per world axis in each episode (N) and cumulative reward, each as [mean, std]. video: an open_video
     writer that gets the first episode, a frame a policy step."""
@@ -57,7 +62,7 @@ def evaluate(env, act, episodes, seed, video=None, log=print):
             np.maximum(peak, np.abs(info["f_world"][:3]), out=peak)
             if video is not None and first:
                 video.write(env.world.render_external()[:, :, ::-1])     # RGB -> OpenCV's BGR
-        term, info, ret = sim.run_episode(env, act, seed=seed * 100003 + ep, on_step=on_step)
+        term, info, ret = sim.run_episode(env, act, seed=episode_seed(seed, ep), on_step=on_step)
         succ.append(term)
         returns.append(ret)
         forces.append(peak)

@@ -40,7 +40,7 @@ def main():
                 def act_seeing(obs):
                     found.append(bool(obs["keypoint"][3]))
                     return act(obs)
-                success, info, _ = sim.run_episode(env, act_seeing, seed=seed * 100003 + k)   # evaluate's seeds
+                success, _, _ = sim.run_episode(env, act_seeing, seed=evaluate.episode_seed(seed, k))
                 rows.append((found[0], np.mean(found), bool(success)))
                 print(f"{d}  episode {k}  keypoint at the start {int(found[0])}  steps with a keypoint "
                       f"{np.mean(found):.2f} of {len(found)}  success {int(success)}", flush=True)

@@ -424,8 +424,7 @@ def write_report(patterns, out_dir="docs", log=print):
     md += ["", "## The ablations (the paper's Figs. 9-11, on the gear)", "",
            "Each row of an ablation trains for the same number of episodes, 3 seeds; the curves are under Figures."]
     for exp, what in ABLATIONS.items():
-        planned = [os.path.basename(tacrl.default_run_dir(tacrl.Config(**tacrl.parse(tacrl.Config, [*row, "--seed", str(s)], ""))))
-                   for row in sweep.EXPERIMENTS[exp] for s in (0, 1, 2)]
+        planned = [sweep.run_name(sweep.config_of([*row, "--seed", str(s)])) for row in sweep.EXPERIMENTS[exp] for s in (0, 1, 2)]
         have = [r for r in runs if fam_of(r) and r["eval"] and os.path.basename(r["dir"]) in planned]
         md.append(f"- {what}: {len(have)} of {len(planned)} runs finished in this world" +
                   ("" if len(have) == len(planned) else f"; the rest: `python tools/sweep.py {exp} --seeds 0,1,2`, then "
@@ -506,9 +505,8 @@ def write_report(patterns, out_dir="docs", log=print):
                    "| ROI | " + " | ".join(labels) + " |", "|---" * (1 + len(labels)) + "|"]
             md += [f"| {roi} | " + " | ".join(f"{v[c][0]:.1f} +- {v[c][1]:.1f}" for c in labels) + " |" for roi, v in bars.items()]
             md += ["", PAPER_FIG12] + note(notes, f"Fig. 12, {task}")
-    ours_peg = [r for r in runs if r["cfg"]["task"] == "peg" and method_of(r["cfg"]) == "ours" and r["eval"]
-                and not fam_of(r)] or [r for r in runs if r["cfg"]["task"] == "peg"
-                                                    and method_of(r["cfg"]) == "ours" and r["eval"]]
+    ours_peg = [r for r in runs if r["cfg"]["task"] == "peg" and method_of(r["cfg"]) == "ours" and r["eval"]]
+    ours_peg = [r for r in ours_peg if not fam_of(r)] or ours_peg     # the quickstart's (stopped when learned) first
     if ours_peg and world != sim.WORLD:     # an episode recorded now would be this code's world, not the runs'
         md += ["", f"Fig. 16 (one episode's behaviour) is recorded by this code, of world {sim.WORLD}: not drawn for "
                "runs of an older world."]

@@ -65,12 +65,22 @@ def plan(experiments, seeds, root, flags=()):
     for name, row in rows:
         for s in seeds:
             argv = [*row, "--seed", str(s)]
-            cfg = tacrl.Config(**tacrl.parse(tacrl.Config, argv, ""))
-            jobs.append(job_of(os.path.join(root, name, os.path.basename(tacrl.default_run_dir(cfg))), argv, cfg))
+            cfg = config_of(argv)
+            jobs.append(job_of(os.path.join(root, name, run_name(cfg)), argv, cfg))
     dirs = [j.run_dir for j in jobs]
     if len(set(dirs)) < len(dirs):
         raise ArgError(f"two runs of the plan would share {next(d for d in dirs if dirs.count(d) > 1)}")
     return jobs
+
+
+def config_of(argv):
+    """tacrl.py's flags -> the run's Config (ArgError for a mistake in them)."""
+    return tacrl.Config(**tacrl.parse(tacrl.Config, argv, ""))
+
+
+def run_name(cfg):
+    """The name of a run's directory under its experiment's folder: tacrl.py's default run dir's."""
+    return os.path.basename(tacrl.default_run_dir(cfg))
 
 
 def job_of(run_dir, argv, cfg):
