@@ -2,6 +2,7 @@
 it."""
 import dataclasses
 
+import numpy as np
 import pytest
 
 import report
@@ -48,3 +49,26 @@ def test_a_comparison_takes_the_runs_of_its_budget_alone(changes, episodes, expe
     """Every row of one of the paper's comparisons trained the same number of episodes, as the paper's rows."""
     run = {"cfg": {**dataclasses.asdict(tacrl.Config()), **changes}, "m": {"episode": list(range(1, episodes + 1))}}
     assert set(report.fam_of(run)) == expected
+
+
+def test_an_ablation_in_numbers_has_a_row_a_setting_over_its_seeds():
+    """Figs. 9-11 in numbers: each setting's cells are over its seeds, seed by seed in brackets; a run that never
+    reached its final range says so; one setting alone is no comparison."""
+    def run(obs, seed, e_r_most, trained, sr):
+        cfg = {**dataclasses.asdict(tacrl.Config()), "task": "gear", "obs": obs, "curriculum": "ex10", "seed": seed,
+               "stop_held": 0, "train_episodes": 200}
+        e_r = np.minimum(np.arange(200) * 0.25, e_r_most)           # mm, reaches 20 at episode 81 where it may
+        m = {"episode": np.arange(1, 201), "e_r_mm": e_r, "success": np.r_[np.zeros(150), np.ones(50) * trained]}
+        rows = [{"error_mm": x, "success_rate": sr * x / 20, "completion_time_s": [4.0, 1.0]} for x in report.LEVELS]
+        return {"cfg": cfg, "m": m, "eval": {"rows": rows}, "dir": f"runs/{obs}-s{seed}"}
+    runs = [run("pt", 0, 5.0, 0.0, 0.0), run("pt", 1, 7.0, 1.0, 0.2),
+            run("ts-ptv", 0, 20.0, 1.0, 1.0), run("ts-ptv", 1, 20.0, 1.0, 0.9), run("ts-ptv", 2, 20.0, 1.0, 0.7)]
+    table = report.ablation_table(runs, "gear", "obs")
+    assert len(table) == 2 + 2 and report.ablation_table(runs[:2], "gear", "obs") == []
+    pt, ptv = table[2].split(" | "), table[3].split(" | ")
+    assert pt[0] == "| P-T" and pt[1:4] == ["2", "never / never", "6.0 / 6.0"]
+    assert pt[4] == "0.50 +- 0.50 (0.00 / 1.00)" and pt[5] == "0.10 +- 0.10 (0.00 / 0.20)"
+    assert ptv[0] == "| Time-series P-T-V" and ptv[1:4] == ["3", "81 / 81 / 81", "20.0 / 20.0"]
+    assert ptv[5] == "0.87 +- 0.12 (1.00 / 0.90 / 0.70)" and ptv[6] == "4.00"
+    assert ptv[7] == "0.22 / 0.43 / 0.65 / 0.87 |"
+    assert report.ablation_table(runs, "peg", "obs") == [] and report.ablation_table(runs, "gear", "roi") == []

@@ -64,6 +64,16 @@ ABLATIONS = {"gear-obs": "Fig. 9, observations (P-T, time-series P-T, time-serie
 PAPER_FIG12 = ("The paper (simulation, the gear's ROI ablation, Fig. 12, average cumulative reward): task attention "
                "61.19 -> 54.73 (new background), 69.23 -> 46.46 (new location); full view 61.12 -> -23.06 and 59.51 -> -14.65.")
 LEVELS = (5.0, 10.0, 15.0, 20.0)
+PAPER_ABLATIONS = {   # what the paper says of each ablation's curves (Sec. 5.1.4); it gives no numbers beside these
+    "obs": "The paper (Fig. 9, gear, the final error range after 200 episodes): all three learn at 2 mm; P-T tolerates "
+           "only 5 mm, time-series P-T more but limited, time-series P-T-V is robust under 10 mm.",
+    "curriculum": "The paper (Fig. 10, gear, 300 episodes): without curriculum, 10 mm reaches SR 0.9 and reward 70, "
+                  "20 mm SR 0.6 and reward 20, 30 mm less; at 30 mm every curriculum beats no curriculum, g2-c10 "
+                  "learns faster than g2-c30, and g2-c2 behaves like g2-c10.",
+    "roi": "The paper (Fig. 11, gear, 200 episodes): ROI-100*160 reaches only 7 mm, as without vision; ROI-200*200 is "
+           "robust in a limited range; ROI-300*300 and ROI-800*800 are robust in a larger range, the full view the "
+           "fastest to converge.",
+}
 OBS_NAMES = {"pt": "P-T", "ts-pt": "Time-series P-T", "ts-ptv": "Time-series P-T-V"}
 FAMILIES = {   # family: (title, curves, the paper's figure, the episodes each of its runs trains: the paper's budget)
     "methods": ("ours against the learned baselines", ("return", "sr15", "e_r_mm"), "Table 1", 200),
@@ -150,6 +160,44 @@ def command_of(cfg):
         if v != getattr(default, k) or k == "task":
             flags.append(f"--{k.replace('_', '-')}" + ("" if v is True else f" {v:g}" if isinstance(v, float) else f" {v}"))
     return " ".join(flags)
+
+
+def ablation_table(runs, task, fam, log=print):
+    """One of the paper's ablations (FAMILIES' fam) in numbers, a row a setting, each cell over its seeds (seed by
+    seed in brackets): the first episode whose E_r reached the run's final range, the largest E_r and the last,
+    training success over the last 50 episodes, and the held-out evaluation at the final range (20 trials a
+    seed) and at 5-20 mm. [] where fewer than two settings have finished runs."""
+    rows = {}
+    for r in runs:
+        label = fam_of(r).get(fam)
+        if r["cfg"]["task"] == task and label and r["eval"]:
+            rows.setdefault(label, []).append(r)
+    if len(rows) < 2:
+        return []
+    md = ["| setting | seeds | first episode at the final E_r | E_r most / last (mm) | training success, last 50 | "
+          "eval SR at the final range | CT there (s) | eval SR at " + " / ".join(f"{x:g}" for x in LEVELS) + " mm |",
+          "|---" * 8 + "|"]
+    for label, seeds in sorted(rows.items()):
+        first, most, last, trained, final, ct, at = [], [], [], [], [], [], []
+        for r in seeds:
+            m, mm = r["m"], r["cfg"]["error_mm"]
+            reached = np.flatnonzero(np.asarray(m["e_r_mm"]) >= mm - 1e-6)
+            first.append(str(int(m["episode"][reached[0]])) if len(reached) else "never")
+            most.append(float(np.max(m["e_r_mm"])))
+            last.append(float(m["e_r_mm"][-1]))
+            trained.append(float(np.mean(m["success"][-50:])))
+            row = next((x for x in r["eval"]["rows"] if x["error_mm"] == mm), None) \
+                or eval_cached(r, "train", levels=(mm,), log=log)[0]
+            final.append(row["success_rate"])
+            if row["completion_time_s"]:
+                ct.append(row["completion_time_s"][0])
+            by_level = {x["error_mm"]: x["success_rate"] for x in r["eval"]["rows"]}
+            at.append([by_level.get(x, np.nan) for x in LEVELS])
+        mean = lambda v, f="{:.2f}": f"{f.format(np.mean(v))} +- {f.format(np.std(v))} ({' / '.join(f.format(x) for x in v)})"
+        md.append(f"| {label} | {len(seeds)} | {' / '.join(first)} | {np.mean(most):.1f} / {np.mean(last):.1f} | "
+                  f"{mean(trained)} | {mean(final)} | {f'{np.mean(ct):.2f}' if ct else '-'} | "
+                  + " / ".join(f"{v:.2f}" for v in np.nanmean(at, axis=0)) + " |")
+    return md
 
 
 def fam_of(run):
@@ -430,29 +478,13 @@ def write_report(patterns, out_dir="docs", log=print):
                   ("" if len(have) == len(planned) else f"; the rest: `python tools/sweep.py {exp} --seeds 0,1,2`, then "
                    f"`python tools/report.py --archive \"runs/{exp}/*\" --to results/{exp}`") + ".")
     md += note(notes, "The ablations")
-    # -- curriculum ablation (Fig. 10) in numbers: how soon each run reached its final range, how it did there
+    # -- the ablations in numbers (the paper's Figs. 9-11 are curves): a row a setting, over its seeds
     for task in ("peg", "gear"):
-        fam = sorted(((fam_of(r)["curriculum"], r) for r in runs if r["cfg"]["task"] == task
-                      and "curriculum" in fam_of(r) and r["eval"]), key=lambda x: x[0])
-        if len({label for label, _ in fam}) < 2:
-            continue
-        md += ["", f"## Curriculum ablation, {task} (the paper's Fig. 10)", "",
-               "Training: the first episode whose E_r reached the run's final error range, and success and return "
-               "over the last 50 episodes. Evaluation: 20 trials at that range.", "",
-               "| curriculum | run | first episode at the final E_r | training success, last 50 | training return, "
-               "last 50 | eval SR | eval CT (s) |", "|---|---|---|---|---|---|---|"]
-        for label, r in fam:
-            m, mm = r["m"], r["cfg"]["error_mm"]
-            at = np.flatnonzero(m["e_r_mm"] >= mm - 1e-6)
-            row = next((x for x in r["eval"]["rows"] if x["error_mm"] == mm), None) \
-                or eval_cached(r, "train", levels=(mm,), log=log)[0]
-            first = int(m["episode"][at[0]]) if len(at) else "never"
-            md.append(f"| {label} | `{r['dir']}` | {first} of {len(m['episode'])} | "
-                      f"{m['success'][-50:].mean():.2f} | {m['return'][-50:].mean():.1f} | "
-                      f"{row['success_rate']:.2f} | {cell(row, 'completion_time_s').split(' +-')[0]} |")
-        md += ["", "The paper (training curves, 300 episodes): without curriculum, 10 mm reaches SR 0.9 and reward "
-               "70, 20 mm SR 0.6 and reward 20, 30 mm less; at 30 mm every curriculum beats no curriculum, g2-c10 "
-               "learns faster than g2-c30, and g2-c2 behaves like g2-c10."]
+        for fam in ("obs", "curriculum", "roi"):
+            table = ablation_table(runs, task, fam, log=log)
+            if table:
+                md += ["", f"## {FAMILIES[fam][0].capitalize()}, {task} (the paper's {FAMILIES[fam][2]}), in numbers", ""]
+                md += table + ["", PAPER_ABLATIONS[fam]]
     # -- learning curves: one figure per comparison of the paper and task
     figs = []
     for task in ("peg", "gear"):
