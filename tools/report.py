@@ -77,7 +77,7 @@ PAPER_ABLATIONS = {   # what the paper says of each ablation's curves (Sec. 5.1.
 OBS_NAMES = {"pt": "P-T", "ts-pt": "Time-series P-T", "ts-ptv": "Time-series P-T-V"}
 FAMILIES = {   # family: (title, curves, the paper's figure, the episodes each of its runs trains: the paper's budget)
     "methods": ("ours against the learned baselines", ("return", "sr15", "e_r_mm"), "Table 1", 200),
-    "obs": ("observation ablation: Ex_r held at 10 mm, E_r adaptive", ("sr15", "e_r_mm"), "Fig. 9", 200),
+    "obs": ("observation ablation: Ex_r held at 10 mm, E_r adaptive", ("return", "sr15", "e_r_mm"), "Fig. 9", 200),
     "curriculum": ("curriculum ablation", ("return", "sr15", "e_r_mm", "ex_r_mm"), "Fig. 10", 300),
     "roi": ("ROI ablation", ("return", "sr15", "e_r_mm"), "Fig. 11", 200),
 }
