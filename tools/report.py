@@ -373,7 +373,7 @@ def world_of(runs, patterns):
 def read_notes(path):
     """docs/results-notes.md, the hand-written reading of the numbers, as {section title: text}: the text before
     the first '## ' line under '', each section under its title. The report puts a section beside the table it
-    is titled after ('Table 1', 'Table 2', 'The ablations', 'Fig. 12, peg', ...) and the rest at the end."""
+    is titled after ('Table 1', 'Table 2', 'The ablations', 'Fig. 9, gear', 'Fig. 12, peg', ...) and the rest at the end."""
     if not os.path.exists(path):
         return {}
     with open(path) as f:
@@ -483,8 +483,9 @@ def write_report(patterns, out_dir="docs", log=print):
         for fam in ("obs", "curriculum", "roi"):
             table = ablation_table(runs, task, fam, log=log)
             if table:
-                md += ["", f"## {FAMILIES[fam][0].capitalize()}, {task} (the paper's {FAMILIES[fam][2]}), in numbers", ""]
-                md += table + ["", PAPER_ABLATIONS[fam]]
+                title = FAMILIES[fam][0]
+                md += ["", f"## {title[0].upper() + title[1:]}, {task} (the paper's {FAMILIES[fam][2]}), in numbers", ""]
+                md += table + ["", PAPER_ABLATIONS[fam]] + note(notes, f"{FAMILIES[fam][2]}, {task}")
     # -- learning curves: one figure per comparison of the paper and task
     figs = []
     for task in ("peg", "gear"):
