@@ -72,3 +72,16 @@ def test_an_ablation_in_numbers_has_a_row_a_setting_over_its_seeds():
     assert ptv[5] == "0.87 +- 0.12 (1.00 / 0.90 / 0.70)" and ptv[6] == "4.00"
     assert ptv[7] == "0.22 / 0.43 / 0.65 / 0.87 |"
     assert report.ablation_table(runs, "peg", "obs") == [] and report.ablation_table(runs, "gear", "roi") == []
+
+
+def test_a_planned_run_is_counted_for_its_own_experiment_alone():
+    """The ROI ablation's task-attention run and the curriculum ablation's adaptive run share a name at two
+    budgets (200 and 300 episodes): a finished run counts for the experiment whose budget it trained."""
+    import sweep
+    run = {"dir": "results/gear-roi/gear-ts-ptv-adaptive-s0", "m": {"episode": list(range(1, 201))},
+           "cfg": {**dataclasses.asdict(tacrl.Config()), "task": "gear", "train_episodes": 200, "stop_held": 0}}
+    plan = lambda exp: [sweep.config_of([*row, "--seed", "0"]) for row in sweep.EXPERIMENTS[exp]]    # noqa: E731
+    assert sum(report.is_planned(run, p) for p in plan("gear-roi")) == 1
+    assert sum(report.is_planned(run, p) for p in plan("gear-curriculum")) == 0
+    unfinished = {**run, "m": {"episode": list(range(1, 150))}}
+    assert sum(report.is_planned(unfinished, p) for p in plan("gear-roi")) == 0

@@ -200,6 +200,15 @@ def ablation_table(runs, task, fam, log=print):
     return md
 
 
+def is_planned(run, plan):
+    """Whether a run is the sweep's planned run `plan` (a Config), finished: its name says what it learns, its
+    config how long it trained (two experiments may plan one name at two budgets: the ROI ablation's task
+    attention at 200 episodes and the curriculum ablation's adaptive at 300)."""
+    cfg = run["cfg"]
+    return os.path.basename(run["dir"]) == sweep.run_name(plan) and cfg["train_episodes"] == plan.train_episodes \
+        and cfg["stop_held"] == plan.stop_held == 0 and len(run["m"]["episode"]) == plan.train_episodes
+
+
 def fam_of(run):
     """The paper's comparisons a run is a row of: families() where it trained the comparison's budget (FAMILIES,
     --stop-held 0), as the paper's rows do. A run stopped when learned, as the quickstart's, or trained for another
@@ -472,8 +481,8 @@ def write_report(patterns, out_dir="docs", log=print):
     md += ["", "## The ablations (the paper's Figs. 9-11, on the gear)", "",
            "Each row of an ablation trains for the same number of episodes, 3 seeds; the curves are under Figures."]
     for exp, what in ABLATIONS.items():
-        planned = [sweep.run_name(sweep.config_of([*row, "--seed", str(s)])) for row in sweep.EXPERIMENTS[exp] for s in (0, 1, 2)]
-        have = [r for r in runs if fam_of(r) and r["eval"] and os.path.basename(r["dir"]) in planned]
+        planned = [sweep.config_of([*row, "--seed", str(s)]) for row in sweep.EXPERIMENTS[exp] for s in (0, 1, 2)]
+        have = [r for r in runs if r["eval"] and any(is_planned(r, p) for p in planned)]
         md.append(f"- {what}: {len(have)} of {len(planned)} runs finished in this world" +
                   ("" if len(have) == len(planned) else f"; the rest: `python tools/sweep.py {exp} --seeds 0,1,2`, then "
                    f"`python tools/report.py --archive \"runs/{exp}/*\" --to results/{exp}`") + ".")
@@ -503,7 +512,7 @@ def write_report(patterns, out_dir="docs", log=print):
                 label = fam_of(r).get(fam)
                 if r["cfg"]["task"] == task and label:
                     groups.setdefault(label, []).append(r)
-            if not groups or (fam != "methods" and len(groups) < 2):
+            if len(groups) < 2:            # one row alone is no comparison (the gear's ROI row without the others)
                 continue
             name = f"fig-{task}-{fam}.png"
             figures.plot_groups(groups, keys, os.path.join(out_dir, name), f"{task}: {title}")
