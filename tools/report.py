@@ -204,18 +204,21 @@ def is_planned(run, plan):
     """Whether a run is the sweep's planned run `plan` (a Config), finished: its name says what it learns, its
     config how long it trained (two experiments may plan one name at two budgets: the ROI ablation's task
     attention at 200 episodes and the curriculum ablation's adaptive at 300)."""
+    return os.path.basename(run["dir"]) == sweep.run_name(plan) and plan.stop_held == 0 \
+        and trained_budget(run, plan.train_episodes)
+
+
+def trained_budget(run, episodes):
+    """Whether a run trained all of a fixed budget of episodes (--stop-held 0), as the paper's rows do."""
     cfg = run["cfg"]
-    return os.path.basename(run["dir"]) == sweep.run_name(plan) and cfg["train_episodes"] == plan.train_episodes \
-        and cfg["stop_held"] == plan.stop_held == 0 and len(run["m"]["episode"]) == plan.train_episodes
+    return cfg["stop_held"] == 0 and cfg["train_episodes"] == episodes == len(run["m"]["episode"])
 
 
 def fam_of(run):
     """The paper's comparisons a run is a row of: families() where it trained the comparison's budget (FAMILIES,
     --stop-held 0), as the paper's rows do. A run stopped when learned, as the quickstart's, or trained for another
     number of episodes, is a row of none (Table 2, Fig. 12 and CONTEXTS.md take those)."""
-    cfg = run["cfg"]
-    return {f: label for f, label in families(cfg).items()
-            if cfg["stop_held"] == 0 and cfg["train_episodes"] == FAMILIES[f][3] == len(run["m"]["episode"])}
+    return {f: label for f, label in families(run["cfg"]).items() if trained_budget(run, FAMILIES[f][3])}
 
 
 def families(cfg):
