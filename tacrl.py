@@ -397,6 +397,10 @@ def parse_args(argv):
                            f"it (--train-episodes N extends it)")
         run_dir = given.pop("resume")
         cfg = replace(load_config(run_dir), **given)
+        saved = episodes_saved(run_dir)          # ckpt.pt lags metrics.csv by the episode in flight at most: refused
+        if cfg.train_episodes < saved - 1:       # here before any env is built (rundir.Run checks the checkpoint)
+            raise ArgError(f"--resume {run_dir!r}: the run has {saved} episodes; --train-episodes "
+                           f"{cfg.train_episodes} is fewer")
         if os.path.exists(os.path.join(run_dir, "eval.json")) and not set(given) - {"threads", "track"}:
             raise ArgError(f"--resume {run_dir!r}: the run is finished; extend it with --train-episodes N (and "
                            f"--stop-held 0 to train past the point where it stopped as learned)")
@@ -500,6 +504,14 @@ def default_run_dir(cfg):
 def read_config(run_dir):
     """A run's config.json as a Config; OSError, or ValueError if a value is not of its flag's type and choices."""
     return from_dict(Config, rundir.read_config(run_dir))
+
+
+def episodes_saved(run_dir):
+    """The rows of a run's metrics.csv; 0 where it has none, or none that can be read (rundir.Run says why)."""
+    try:
+        return len(rundir.read_metrics(run_dir)["episode"])
+    except (OSError, ValueError, KeyError):
+        return 0
 
 
 def load_config(run_dir):

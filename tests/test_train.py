@@ -263,6 +263,10 @@ def test_a_finished_run_is_not_resumed_but_can_be_extended(tiny_run, tmp_path, c
     monkeypatch.setattr(sim, "MAX_STEPS", SHORT)
     assert tacrl.main(["--resume", tiny_run["dir"]]) == 2
     assert "the run is finished; extend it with --train-episodes N" in capsys.readouterr().err
+    with monkeypatch.context() as m:                     # refused before any env is built
+        m.setattr(tacrl, "make_env", None)
+        assert tacrl.main(["--resume", tiny_run["dir"], "--train-episodes", "5"]) == 2
+    assert "the run has 8 episodes; --train-episodes 5 is fewer" in capsys.readouterr().err
     run_dir = str(tmp_path / "run")
     shutil.copytree(tiny_run["dir"], run_dir)
     for cached in ("eval-ctx-loc-2.json", "eval-bg-light-1mm.json"):     # evaluations of the old policy

@@ -167,11 +167,7 @@ def ablation_table(runs, task, fam, log=print):
     seed in brackets): the first episode whose E_r reached the run's final range, the largest E_r and the last,
     training success over the last 50 episodes, and the held-out evaluation at the final range (20 trials a
     seed) and at 5-20 mm. [] where fewer than two settings have finished runs."""
-    rows = {}
-    for r in runs:
-        label = fam_of(r).get(fam)
-        if r["cfg"]["task"] == task and label and r["eval"]:
-            rows.setdefault(label, []).append(r)
+    rows = groups_of([r for r in runs if r["eval"]], task, fam)
     if len(rows) < 2:
         return []
     md = ["| setting | seeds | first episode at the final E_r | E_r most / last (mm) | training success, last 50 | "
@@ -198,6 +194,16 @@ def ablation_table(runs, task, fam, log=print):
                   f"{mean(trained)} | {mean(final)} | {f'{np.mean(ct):.2f}' if ct else '-'} | "
                   + " / ".join(f"{v:.2f}" for v in np.nanmean(at, axis=0)) + " |")
     return md
+
+
+def groups_of(runs, task, fam):
+    """The rows of one of the paper's comparisons (FAMILIES' fam) for a task: {row label: [its runs, a seed each]}."""
+    groups = {}
+    for r in runs:
+        label = fam_of(r).get(fam)
+        if r["cfg"]["task"] == task and label:
+            groups.setdefault(label, []).append(r)
+    return groups
 
 
 def is_planned(run, plan):
@@ -484,7 +490,7 @@ def write_report(patterns, out_dir="docs", log=print):
     md += ["", "## The ablations (the paper's Figs. 9-11, on the gear)", "",
            "Each row of an ablation trains for the same number of episodes, 3 seeds; the curves are under Figures."]
     for exp, what in ABLATIONS.items():
-        planned = [sweep.config_of([*row, "--seed", str(s)]) for row in sweep.EXPERIMENTS[exp] for s in (0, 1, 2)]
+        planned = [sweep.config_of([*row, "--seed", str(s)]) for row in sweep.EXPERIMENTS[exp] for s in sweep.SEEDS]
         have = [r for r in runs if r["eval"] and any(is_planned(r, p) for p in planned)]
         md.append(f"- {what}: {len(have)} of {len(planned)} runs finished in this world" +
                   ("" if len(have) == len(planned) else f"; the rest: `python tools/sweep.py {exp} --seeds 0,1,2`, then "
@@ -510,11 +516,7 @@ def write_report(patterns, out_dir="docs", log=print):
             figures.plot_groups(groups, ("sr15", "e_r_mm"), os.path.join(out_dir, name), f"{task}: every run")
             figs.append((name, f"{task}: every run, grouped by method and setting"))
         for fam, (title, keys, paper_fig, _) in FAMILIES.items():
-            groups = {}
-            for r in runs:
-                label = fam_of(r).get(fam)
-                if r["cfg"]["task"] == task and label:
-                    groups.setdefault(label, []).append(r)
+            groups = groups_of(runs, task, fam)
             if len(groups) < 2:            # one row alone is no comparison (the gear's ROI row without the others)
                 continue
             name = f"fig-{task}-{fam}.png"
