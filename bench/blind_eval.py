@@ -50,7 +50,6 @@ def main():
         act, cfg = report.load_policy(run), run["cfg"]
         sr = {}
         with evaluate.eval_env(cfg["task"], act, roi=cfg["roi"], e_r_mm=a.error_mm) as env:
-            env.set_ranges(a.error_mm / 1000, act.meta["ex_r"])      # as evaluate_levels sets them
             for mode in MODES:
                 row = evaluate.evaluate(env, with_image(act, env, mode), a.episodes, evaluate.EVAL_SEED + cfg["seed"],
                                         log=lambda *_: None)

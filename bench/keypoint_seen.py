@@ -33,7 +33,6 @@ def main():
         run = report.load_run(d)
         act, seed = report.load_policy(run), evaluate.EVAL_SEED + run["cfg"]["seed"]
         with evaluate.eval_env("peg", act, e_r_mm=a.error_mm) as env:
-            env.set_ranges(a.error_mm / 1000, act.meta["ex_r"])     # as evaluate_levels sets them
             for k in range(a.episodes):
                 found = []
 

@@ -493,7 +493,7 @@ def write_report(patterns, out_dir="docs", log=print):
         planned = [sweep.config_of([*row, "--seed", str(s)]) for row in sweep.EXPERIMENTS[exp] for s in sweep.SEEDS]
         have = [r for r in runs if r["eval"] and any(is_planned(r, p) for p in planned)]
         md.append(f"- {what}: {len(have)} of {len(planned)} runs finished in this world" +
-                  ("" if len(have) == len(planned) else f"; the rest: `python tools/sweep.py {exp} --seeds 0,1,2`, then "
+                  ("" if len(have) == len(planned) else f"; the rest: `python tools/sweep.py {exp} --seeds {','.join(map(str, sweep.SEEDS))}`, then "
                    f"`python tools/report.py --archive \"runs/{exp}/*\" --to results/{exp}`") + ".")
     md += note(notes, "The ablations")
     # -- the ablations in numbers (the paper's Figs. 9-11 are curves): a row a setting, over its seeds
