@@ -232,13 +232,16 @@ def test_table2_rows_are_evaluated_once_per_world_and_context(tiny_run, tmp_path
 def test_compare_lists_finished_and_unfinished_runs_and_refuses_two_worlds(tiny_run, tmp_path):
     unfinished = tmp_path / "runs" / "unfinished"
     unfinished.mkdir(parents=True)
-    for f in ("config.json", "metrics.csv"):
-        shutil.copy(os.path.join(tiny_run["dir"], f), unfinished / f)
+    shutil.copy(os.path.join(tiny_run["dir"], "metrics.csv"), unfinished / "metrics.csv")
+    cfg = json.loads(open(os.path.join(tiny_run["dir"], "config.json")).read())
+    other_task = {"peg": "gear", "gear": "peg"}[cfg["task"]]             # the same settings on the other task
+    (unfinished / "config.json").write_text(json.dumps({**cfg, "task": other_task}))
     docs = tmp_path / "docs"
     assert tacrl.command("report", lambda: report.main([f"{tiny_run['dir']},{unfinished}", "--compare", "cmp",
                                                          "--out", str(docs)])) == 0
     rows = [ln for ln in (docs / "cmp.md").read_text().splitlines() if ln.startswith("|")][2:]   # under the header
     assert len(rows) == 2 and sum("unfinished" in r for r in rows) == 1 and (docs / "cmp.png").stat().st_size > 0
+    assert sorted(r.split(",")[0] for r in rows) == sorted(f"| {t}" for t in (cfg["task"], other_task))  # apart
     other = tmp_path / "runs" / "other-world"
     shutil.copytree(tiny_run["dir"], other)
     ev = json.loads((other / "eval.json").read_text())

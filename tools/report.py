@@ -785,7 +785,8 @@ def write_compare(patterns, out_dir, name, log=print):
           "| settings | seed | episodes | E_r last / max (mm) | first at final | eval SR " +
           " / ".join(f"{mm:g}" for mm in LEVELS) + " mm | minutes |", "|---" * 7 + "|"]
     groups = {}
-    setting = lambda cfg: method_of(cfg) + (" (privileged critics)" if cfg["critic"] == "privileged" else "")  # noqa: E731
+    setting = lambda cfg: f"{cfg['task']}, " + method_of(cfg) + (  # noqa: E731  (a task's runs never share a row)
+        " (privileged critics)" if cfg["critic"] == "privileged" else "")
     for r in sorted(runs, key=lambda r: (setting(r["cfg"]), r["cfg"]["seed"])):
         m, cfg = r["m"], r["cfg"]
         at_final = np.flatnonzero(m["e_r_mm"] >= cfg["error_mm"] - 1e-6)
