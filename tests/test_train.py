@@ -233,7 +233,7 @@ def test_compare_lists_finished_and_unfinished_runs_and_refuses_two_worlds(tiny_
     unfinished = tmp_path / "runs" / "unfinished"
     unfinished.mkdir(parents=True)
     shutil.copy(os.path.join(tiny_run["dir"], "metrics.csv"), unfinished / "metrics.csv")
-    cfg = json.loads(open(os.path.join(tiny_run["dir"], "config.json")).read())
+    cfg = report.read_json(os.path.join(tiny_run["dir"], "config.json"))
     other_task = {"peg": "gear", "gear": "peg"}[cfg["task"]]             # the same settings on the other task
     (unfinished / "config.json").write_text(json.dumps({**cfg, "task": other_task}))
     docs = tmp_path / "docs"
