@@ -72,6 +72,8 @@ def test_an_ablation_in_numbers_has_a_row_a_setting_over_its_seeds():
     assert ptv[5] == "0.87 +- 0.12 (1.00 / 0.90 / 0.70)" and ptv[6] == "4.00"
     assert ptv[7] == "0.22 / 0.43 / 0.65 / 0.87 |"
     assert report.ablation_table(runs, "peg", "obs") == [] and report.ablation_table(runs, "gear", "roi") == []
+    one = report.ablation_table(runs[1:4], "gear", "obs")[2].split(" | ")     # a setting of one seed: no spread
+    assert one[0] == "| P-T" and one[1] == "1" and one[4:6] == ["1.00", "0.20"]
 
 
 def test_a_planned_run_is_counted_for_its_own_experiment_alone():

@@ -189,7 +189,8 @@ def ablation_table(runs, task, fam, log=print):
                 ct.append(row["completion_time_s"][0])
             by_level = {x["error_mm"]: x["success_rate"] for x in r["eval"]["rows"]}
             at.append([by_level.get(x, np.nan) for x in LEVELS])
-        mean = lambda v, f="{:.2f}": f"{f.format(np.mean(v))} +- {f.format(np.std(v))} ({' / '.join(f.format(x) for x in v)})"
+        mean = lambda v, f="{:.2f}": f.format(v[0]) if len(v) == 1 else \
+            f"{f.format(np.mean(v))} +- {f.format(np.std(v))} ({' / '.join(f.format(x) for x in v)})"   # no spread of one seed
         md.append(f"| {label} | {len(seeds)} | {' / '.join(first)} | {np.mean(most):.1f} / {np.mean(last):.1f} | "
                   f"{mean(trained)} | {mean(final)} | {f'{np.mean(ct):.2f}' if ct else '-'} | "
                   + " / ".join(f"{v:.2f}" for v in np.nanmean(at, axis=0)) + " |")
