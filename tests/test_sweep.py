@@ -57,6 +57,25 @@ def test_a_sweep_runs_here_skips_what_finished_and_resumes_what_stopped(tmp_path
     assert "holds another run (its eval_levels differ)" in capsys.readouterr().err     # nothing overwritten
 
 
+def test_progress_lines_from_runs_started_at_once_stay_whole():
+    import threading
+    import time
+    out = []
+
+    def log(m):                    # print's two writes (the line, then its newline), slowed so that threads meet
+        out.append(m)
+        time.sleep(0.05)
+        out.append("\n")
+    progress = sweep.Progress(4, log)
+    jobs = [sweep.Job(f"runs/r{i}", [], "new") for i in range(4)]
+    threads = [threading.Thread(target=progress.started, args=(j,)) for j in jobs]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert sorted("".join(out).splitlines()) == [f"started runs/r{i} (new), its log runs/r{i}/train.log" for i in range(4)]
+
+
 def test_a_sweep_runs_as_ray_tasks_on_a_local_instance(tmp_path, monkeypatch):
     """The plan's commands as Ray tasks, each writing its run dir's log where the driver runs (the same paths on
     every node); stand-in commands, as in the local test."""

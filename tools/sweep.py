@@ -17,6 +17,7 @@ report on any node then reads. Each run's output goes to its run dir's train.log
 import os
 import signal
 import sys
+import threading
 import time
 from dataclasses import dataclass
 
@@ -138,17 +139,24 @@ class Progress:
     def __init__(self, todo, log):
         self.t0 = self.shown = time.time()
         self.todo, self.log, self.running = todo, log, []
+        self.lock = threading.Lock()    # runs start on pool threads: print writes a line and its newline apart
 
     def started(self, job, verb="started"):
-        self.running.append(job)
-        self.log(f"{verb} {job.run_dir} ({job.state}), its log {job.run_dir}/{rundir.LOG}")
+        with self.lock:
+            self.running.append(job)
+            self.log(f"{verb} {job.run_dir} ({job.state}), its log {job.run_dir}/{rundir.LOG}")
 
     def ended(self, job, code, left):
-        self.running.remove(job)
-        self.log(f"[{rundir.fmt_time(time.time() - self.t0)}] {job.run_dir}: "
-                 f"{'finished' if code == 0 else f'failed, exit code {code}'} ({left} of {self.todo} left)")
+        with self.lock:
+            self.running.remove(job)
+            self.log(f"[{rundir.fmt_time(time.time() - self.t0)}] {job.run_dir}: "
+                     f"{'finished' if code == 0 else f'failed, exit code {code}'} ({left} of {self.todo} left)")
 
     def tick(self):
+        with self.lock:
+            self._tick()
+
+    def _tick(self):
         if time.time() - self.shown > 60:
             self.shown = time.time()
             self.log(f"[{rundir.fmt_time(self.shown - self.t0)}] episodes: "
