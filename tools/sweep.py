@@ -154,13 +154,10 @@ class Progress:
 
     def tick(self):
         with self.lock:
-            self._tick()
-
-    def _tick(self):
-        if time.time() - self.shown > 60:
-            self.shown = time.time()
-            self.log(f"[{rundir.fmt_time(self.shown - self.t0)}] episodes: "
-                     + "  ".join(f"{os.path.basename(j.run_dir)} {last_episode(j.run_dir)}" for j in self.running))
+            if time.time() - self.shown > 60:
+                self.shown = time.time()
+                self.log(f"[{rundir.fmt_time(self.shown - self.t0)}] episodes: "
+                         + "  ".join(f"{os.path.basename(j.run_dir)} {last_episode(j.run_dir)}" for j in self.running))
 
 
 def collect(pending, ready_of, result_of, progress):
