@@ -161,6 +161,7 @@ def train(cfg, log=lambda msg: print(msg, flush=True)):
             env.set_ranges(*curr.ranges())                               # E_r and Ex_r where line 11 left them
             # line 9, interact with the environment, and store in R. The warm-up acts uniformly at random
             # (Spinning Up's start steps), so that the critics see every action before the actor follows them
+            torch.set_num_threads(cores.free())                         # acting follows the machine too
             episode = rollout(env, sac.act if ep >= cfg.warmup else random_action)
             buf.add_episode(episode)
             run.lap("env")
@@ -180,6 +181,7 @@ def train(cfg, log=lambda msg: print(msg, flush=True)):
     finally:
         env.close()
         run.close()
+    torch.set_num_threads(cores.free())
     return finish(cfg, sac, curr, env.e_r_max, run.seconds(), log)
 
 
@@ -326,11 +328,17 @@ class CoreShare:
     other process holds); with one thread fewer, not at all (bench/bench_threads.py). The trade: updates
     on 1 and 2 threads differ in the last digits (a LayerNorm's and a convolution's gradient sums are
     split by thread), so a run repeats to the last digit only with the threads fixed (`fixed`, --threads).
-    Where /proc/stat cannot be read, every core counts as free."""
+    Where /proc/stat cannot be read, every core counts as free. A reading spans at least WINDOW seconds,
+    since a shorter one cannot tell a busy core from an idle one: sooner, the last answer stands, and the
+    first, right after start, waits out the window. Counting every core as free there, and acting on the threads of start-up or of the last
+    updates, once made a tiny run's first episode act for 77.9 s instead of 2.9 s beside two busy runs
+    (2 threads on 2 busy cores: each LSTM step of the policy waited for a core)."""
+
+    WINDOW = 0.2                    # s: 20 of /proc/stat's 10 ms ticks a core
 
     def __init__(self, fixed=0, cores=None):
         self.fixed, self.cores = fixed, cores or os.cpu_count() or 1
-        self.last = self._read()
+        self.last, self.answer = self._read(), None
 
     @staticmethod
     def _read():
@@ -345,14 +353,19 @@ class CoreShare:
     def free(self):
         """Cores free of other processes since the last call: a core counts as taken once they use 0.3 of it.
         With `fixed` threads (the user's --threads), always that."""
-        now = self._read()
         if self.fixed:
             return self.fixed
-        if now is None or self.last is None or now[0] - self.last[0] < 0.05:
+        now = self._read()
+        if now is not None and self.last is not None and now[0] - self.last[0] < self.WINDOW:
+            if self.answer is not None:
+                return self.answer
+            time.sleep(self.WINDOW - (now[0] - self.last[0]))
+            now = self._read()
+        if now is None or self.last is None:
             return self.cores
         others = ((now[1] - self.last[1]) - (now[2] - self.last[2])) / (now[0] - self.last[0])
-        self.last = now
-        return max(1, min(self.cores, int(self.cores - others + 0.3)))
+        self.last, self.answer = now, max(1, min(self.cores, int(self.cores - others + 0.3)))
+        return self.answer
 
     def steps(self, n, set_threads, every=20):
         """range(n), calling set_threads(self.free()) before the first step and every `every` steps: a long
@@ -546,6 +559,7 @@ def run_evaluation(cfg):
     if pi is not None and cfg.error_mm > pi.meta["e_r_max"] * 1000 + 1e-6:   # Eq. 11's ROI would widen
         raise ArgError(f"--error-mm {cfg.error_mm:g}: this policy's view covers {pi.meta['e_r_max'] * 1000:g} mm")
     print(f"config: {asdict(cfg)}", flush=True)
+    torch.set_num_threads(CoreShare(cfg.threads).free())
     with evaluate.eval_env(cfg.task, pi, cfg.context, cfg.roi, cfg.clearance_mm, cfg.error_mm, cfg.gui) as env:
         video = evaluate.open_video(cfg.video, env.world.render_external().shape[1::-1]) if cfg.video else None
         act = pi if pi is not None else baselines.make(cfg.eval, env)
