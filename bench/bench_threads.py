@@ -1,5 +1,7 @@
 """SAC updates/s of the default training configuration for torch thread counts and OpenMP wait policies,
-alone and beside one other busy process: what tacrl.py's default (cli.CoreShare) is chosen from.
+alone and beside one other busy process: what tacrl.py's default (cli.CoreShare) is chosen from. Also the
+policy's actions/s right after start (one observation at a time, as an episode acts), on the threads the
+variant starts with: where a run's first episode acts.
 
     python bench/bench_threads.py [--updates 80] [--repeats 3]
 
@@ -31,9 +33,10 @@ VARIANTS = [("2 threads, OpenMP default wait (torch's default)", 2, {}),
 WAIT_VARS = ("OMP_WAIT_POLICY", "GOMP_SPINCOUNT", "OMP_NUM_THREADS")
 
 
-def worker(threads, updates):
-    """In a fresh process: updates/s of the default configuration's SAC update with `threads` torch threads
-    (0: as tacrl.py's default, a thread a core that other processes leave free, re-decided every 20 updates)."""
+def worker(threads, updates, acts=120):
+    """In a fresh process: actions/s of the policy right after start, then updates/s of the default
+    configuration's SAC update, with `threads` torch threads (0: as tacrl.py's default, a thread a core that
+    other processes leave free, decided at start and re-decided every 20 updates)."""
     sys.path.insert(0, ROOT)
     import torch
     from bench_sac import filled_buffer
@@ -42,16 +45,22 @@ def worker(threads, updates):
     torch.set_num_threads(share.free())
     rng = np.random.default_rng(0)
     buf, sac = filled_buffer(rng), tacrl.make_sac(tacrl.Config(), "cpu")
+    o = {k: v[0] for k, v in buf.sample(1, rng)[0].items() if k in ("image", "pose_hist", "wrench_hist")}
+    sac.act(o)
+    t0 = time.perf_counter()
+    for _ in range(acts):                                    # an episode's actions, one observation each
+        sac.act(o)
+    act_rate = acts / (time.perf_counter() - t0)
     for _ in range(5):
         sac.update(buf.sample(64, rng))
     t0 = time.perf_counter()
     for _ in share.steps(updates, torch.set_num_threads):
         sac.update(buf.sample(64, rng))
-    print(updates / (time.perf_counter() - t0))
+    print(act_rate, updates / (time.perf_counter() - t0))
 
 
 def cell(threads, env, updates, busy):
-    """Updates/s of one fresh worker process, beside a busy loop if `busy`."""
+    """(actions/s, updates/s) of one fresh worker process, beside a busy loop if `busy`."""
     env = {**{k: v for k, v in os.environ.items() if k not in WAIT_VARS}, **env}
     hog = subprocess.Popen([sys.executable, "-c", "while True: pass"]) if busy else None
     try:
@@ -61,7 +70,7 @@ def cell(threads, env, updates, busy):
         if hog:
             hog.kill()
             hog.wait()
-    return float(out.stdout.split()[-1])
+    return tuple(float(x) for x in out.stdout.split()[-2:])
 
 
 def main():
@@ -78,14 +87,15 @@ def main():
         for name, threads, env in VARIANTS:
             for busy in (False, True):
                 runs[name, busy].append(cell(threads, env, a.updates, busy))
-    med = {k: float(np.median(v)) for k, v in runs.items()}
-    base = med[VARIANTS[0][0], False]
-    print(f"\n{'variant':52s} {'alone':>8s} {'busy':>8s} {'slowdown':>9s} {'alone / default':>16s}  every run, alone | busy")
-    for name, _, _ in VARIANTS:
-        alone, busy = med[name, False], med[name, True]
-        every = " ".join(f"{x:.0f}" for x in runs[name, False]) + " | " + " ".join(f"{x:.0f}" for x in runs[name, True])
-        print(f"{name:52s} {alone:8.1f} {busy:8.1f} {alone / busy:8.2f}x {alone / base:15.0%}  {every}")
-    print("(updates/s; slowdown: alone / beside one busy process; the bar: <= 2x, and alone >= 85 % of the default)")
+    for col, unit in ((1, "updates/s"), (0, "actions/s right after start")):
+        med = {k: float(np.median([r[col] for r in v])) for k, v in runs.items()}
+        base = med[VARIANTS[0][0], False]
+        print(f"\n{'variant':52s} {'alone':>8s} {'busy':>8s} {'slowdown':>9s} {'alone / default':>16s}  every run, alone | busy")
+        for name, _, _ in VARIANTS:
+            alone, busy = med[name, False], med[name, True]
+            every = " | ".join(" ".join(f"{r[col]:.0f}" for r in runs[name, b]) for b in (False, True))
+            print(f"{name:52s} {alone:8.1f} {busy:8.1f} {alone / busy:8.2f}x {alone / base:15.0%}  {every}")
+        print(f"({unit}; slowdown: alone / beside one busy process; the bar: <= 2x, and alone >= 85 % of the default)")
 
 
 if __name__ == "__main__":
