@@ -330,10 +330,10 @@ class CoreShare:
     split by thread), so a run repeats to the last digit only with the threads fixed (`fixed`, --threads).
     Where /proc/stat cannot be read, every core counts as free. A reading spans at least WINDOW seconds,
     since a shorter one cannot tell a busy core from an idle one: sooner, the last answer stands, and the
-    first, right after start, waits out the window. Counting every core as free there, and acting on the threads of start-up or of the last
-    updates, once made a tiny run's first episode act for 77.9 s instead of 2.9 s beside two busy runs
-    (2 threads on 2 busy cores: each LSTM step of the policy waited for a core; bench/bench_threads.py
-    measures actions/s right after start)."""
+    first, right after start, waits out the window. Counting every core as free there, and acting on the
+    threads of start-up or of the last updates, once made a tiny run's first episode act for 77.9 s
+    instead of 2.9 s beside two busy runs (2 threads on 2 busy cores: each LSTM step of the policy waited
+    for a core; bench/bench_threads.py measures actions/s right after start)."""
 
     WINDOW = 0.2                    # s: 20 of /proc/stat's 10 ms ticks a core
 

@@ -32,10 +32,15 @@ def main():
     with evaluate.eval_env(cfg["task"], pi, "train", cfg["roi"], cfg["clearance_mm"], a.error_mm) as env:
         for name, keep in VARIANTS.items():
             wins, acts, ends = 0, [], []
+
+            def act(obs):                                                  # the policy's F_d, parts zeroed
+                acts.append(np.asarray(pi(obs)) * keep)
+                return acts[-1]
+
             for k in range(a.episodes):
                 offs = []
-                term, _, _ = sim.run_episode(env, lambda o: acts.append(np.asarray(pi(o)) * keep) or acts[-1],
-                                             seed=evaluate.episode_seed(evaluate.EVAL_SEED + cfg["seed"], k),
+                seed = evaluate.episode_seed(evaluate.EVAL_SEED + cfg["seed"], k)
+                term, _, _ = sim.run_episode(env, act, seed=seed,
                                              on_step=lambda obs, r, info: offs.append(info["goal_offset"][:3]))
                 wins += int(term)
                 ends.append(np.asarray(offs[-1]) * 1000)                  # m -> mm
