@@ -33,9 +33,11 @@ policy (save_policy, TrainedPolicy) is the actor and its encoder with the caller
 Every hyper-parameter's default is the one tacrl.py trains with.
 """
 import copy
+import ctypes
 import os
 import pickle
 import warnings
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import torch
@@ -311,6 +313,71 @@ def jitter(images, rng, s):
     return np.clip(np.rint(x), 0, 255).astype(np.uint8)
 
 
+# ---------------------------------------------------------------- the CPU: two cores in one update
+def keep_freed_memory():
+    """Let glibc's malloc keep what it frees (M_MMAP_THRESHOLD 32 MB, M_TRIM_THRESHOLD 1 GB) instead of handing
+    blocks back to the kernel: otherwise every update's LSTM and convolution buffers (a few MB) come back as fresh
+    pages that fault in one by one, which made the LSTM's forward and backward 2.2x slower (bench/profile_update.py).
+    A run then holds its largest working set. Process-wide; a no-op where libc is not glibc."""
+    try:
+        libc = ctypes.CDLL("libc.so.6")
+        libc.mallopt(-3, 32 << 20)          # M_MMAP_THRESHOLD: blocks up to 32 MB from the heap, not mmap
+        libc.mallopt(-1, 1 << 30)           # M_TRIM_THRESHOLD: keep up to 1 GB of free heap
+    except (OSError, AttributeError):
+        pass
+
+
+class Helper:
+    """A second thread for the second half of a batch (threads=2), or none (threads=1: the halves one after the
+    other on this thread). Torch runs each op on the thread that calls it when torch.set_num_threads(1) (the caller
+    sets it; the helper's thread sets its own), so the arithmetic is the same with one thread or two."""
+
+    def __init__(self, threads=1):
+        self.threads = threads
+        self.pool = ThreadPoolExecutor(1, initializer=torch.set_num_threads, initargs=(1,)) if threads > 1 else None
+
+    def both(self, f, x0, x1):
+        """(f(x0), f(x1)), f(x1) on the helper's thread while this one computes f(x0)."""
+        if self.pool is None:
+            return f(x0), f(x1)
+        job = self.pool.submit(f, x1)
+        return f(x0), job.result()
+
+    def __deepcopy__(self, memo):           # a copy of the SAC gets a thread of its own
+        return Helper(self.threads)
+
+
+def in_halves(f, params, o, helper):
+    """f(o) for a batch dict o, computed as its two halves, side by side with a helper of two threads; the
+    gradient reaches params (f's parameters) as from f(o). Two halves, with one thread or two: the same numbers."""
+    n = len(next(iter(o.values()))) // 2
+    halves = [{k: v[:n] for k, v in o.items()}, {k: v[n:] for k, v in o.items()}]
+    if not torch.is_grad_enabled():                 # (grad mode is per thread)
+        return torch.cat(helper.both(torch.no_grad()(f), *halves))
+    return _Halves.apply(f, helper, halves, *params)
+
+
+class _Halves(torch.autograd.Function):
+    """Autograd for in_halves: each half keeps its own graph, and the backward runs the two side by side
+    (torch.autograd.grad of each, summed: no two threads accumulate into one .grad)."""
+
+    @staticmethod
+    def forward(ctx, f, helper, halves, *params):
+        def forward_half(x):
+            with torch.enable_grad():       # grad mode is per thread, and off inside an autograd.Function
+                return f(x)
+        ctx.ys, ctx.helper, ctx.params = helper.both(forward_half, *halves), helper, params
+        return torch.cat([y.detach() for y in ctx.ys])
+
+    @staticmethod
+    def backward(ctx, g):
+        g0, g1 = g.split([len(y) for y in ctx.ys])
+        d0, d1 = ctx.helper.both(lambda yg: torch.autograd.grad(yg[0], ctx.params, yg[1], allow_unused=True),
+                                 (ctx.ys[0], g0), (ctx.ys[1], g1))
+        ctx.ys = None
+        return (None, None, None, *[a if b is None else b if a is None else a + b for a, b in zip(d0, d1)])
+
+
 # ---------------------------------------------------------------- soft actor-critic
 def td_target(r, terminated, q_next, logp_next, alpha, gamma):
     """y = r + gamma (1 - terminated) (min Q'(s', a') - alpha log pi(a'|s')). Only a real end of the
@@ -335,8 +402,9 @@ class SAC:
     def __init__(self, obs_kind="ts-ptv", pose_scale=np.ones(6), wrench_scale=np.ones(6), act_dim=6,
                  lr=3e-4, gamma=0.95, tau=0.005, init_alpha=0.1, target_entropy=None, state_dim=0, device="cpu",
                  extra_dim=0, target_encoder=True, norm="joint", own_actor_encoder=False, aux_reward=0.0,
-                 aux_state=0.0, image="cnn", image_norm="fixed"):
+                 aux_state=0.0, image="cnn", image_norm="fixed", threads=1):
         self.device, self.gamma, self.tau = torch.device(device), gamma, tau
+        self.helper = Helper(threads)        # threads=2: each multimodal encoder's batch as two halves, side by side
         # the paper's critics lend the actor their encoder, unless it has one of its own (as it always has with
         # privileged critics), trained through the actor loss
         self.shared = not state_dim and not own_actor_encoder
@@ -396,11 +464,11 @@ class SAC:
         with torch.no_grad():
             # (B, n_feat): o' encoded once, by the target encoder, or (target_encoder False) by the online one
             # without gradient, as DrQ-v2 does (Yarats et al. 2021), so that a' follows the actor's encoder of now
-            z2 = (self.enc_targ if self.target_encoder else self.enc)(o2)
-            a2, logp2 = self.actor(z2 if self.shared else self.actor_enc(o2))
+            z2 = self.encode(self.enc_targ if self.target_encoder else self.enc, o2)
+            a2, logp2 = self.actor(z2 if self.shared else self.encode(self.actor_enc, o2))
             q1_t, q2_t = self.q_targ(self.critic_input(z2, o2), a2)
             y = td_target(r, term, torch.min(q1_t, q2_t), logp2, alpha, disc)
-        z = self.enc(o)
+        z = self.encode(self.enc, o)
         q1, q2 = self.q(self.critic_input(z, o), a)
         q_loss = F.mse_loss(q1, y) + F.mse_loss(q2, y)
         aux = 0.0
@@ -413,7 +481,7 @@ class SAC:
         self.q_opt.step()
 
         # actor: maximise min Q(o, pi(o)) - alpha log pi, the critics only read
-        z_pi = z.detach() if self.shared else self.actor_enc(o)
+        z_pi = z.detach() if self.shared else self.encode(self.actor_enc, o)
         a_pi, logp = self.actor(z_pi)
         for p in self.q.parameters():
             p.requires_grad_(False)
@@ -436,6 +504,13 @@ class SAC:
                 p_targ.lerp_(p, self.tau)
         return {"q_loss": q_loss.item(), "pi_loss": pi_loss.item(), "alpha": alpha.item(),
                 "entropy": -logp.mean().item()}
+
+    def encode(self, enc, o):
+        """enc(o); a multimodal encoder on the CPU as the batch's two halves (in_halves): its LSTM and CNN, most of
+        an update, on two cores with threads=2, with the same numbers on one."""
+        if self.device.type == "cpu" and isinstance(enc, Encoder):
+            return in_halves(enc, [p for p in enc.parameters() if p.requires_grad], o, self.helper)
+        return enc(o)
 
     def critic_input(self, z, o):
         """What the twin Q heads read: the critics' features, and with extra_dim obs['extra'] (B, extra_dim), a

@@ -20,7 +20,6 @@ import os
 import signal
 import sys
 import tempfile
-import time
 from dataclasses import asdict, dataclass, fields, replace
 
 if __name__ == "__main__":     # Ctrl-C while torch and pybullet load: one line and exit 130, not a traceback
@@ -119,8 +118,8 @@ class Config:
                          ".mp4 (H.264, where OpenCV has it): a browser plays either", mode="eval")
     # the machine
     device: str = opt("auto", "where torch runs", ("auto", "cpu", "cuda"))
-    threads: int = opt(0, "torch CPU threads (0: one a core that other processes leave free, measured as the run goes: "
-                          "torch's one a core slowed updates 3-4x beside one busy program)", bounds=(0, None))
+    threads: int = opt(0, "CPU threads of an update: the two halves of each batch side by side (2) or one after the other "
+                          "(1), the same numbers either way (0: 2 where there are 2 cores)", bounds=(0, 2))
     gui: bool = opt(False, "open the PyBullet window")
 
 
@@ -138,8 +137,7 @@ VAL_SEED, VAL_EPISODES, VAL_WINS, VAL_EVERY, VAL_PASSES = 2000, 20, 19, 10, 2   
 # ---------------------------------------------------------------- Algorithm 1
 def train(cfg, log=lambda msg: print(msg, flush=True)):
     """Algorithm 1: learning context-generalized TA-MRP with ACRRL. Returns eval.json's contents."""
-    cores = CoreShare(cfg.threads)                 # torch's threads: --threads, or a core each that others leave free
-    torch.set_num_threads(cores.free())
+    use_cpu(cfg)
     torch.manual_seed(cfg.seed)
     # Lines 1-5, initialize the learning architecture: the env holds the hand-designed part of the skill (2: tau(t)
     # and K, Eq. 8-9, 14), the error range E_r (3), the ROI for E_r (4: Eq. 11, at the largest) and the reward (5)
@@ -153,26 +151,24 @@ def train(cfg, log=lambda msg: print(msg, flush=True)):
     if run.extended:                                       # a finished run trained on validates anew
         stop.passes = 0
     log(f"config: {asdict(cfg)}")
-    log(f"parameters: {sac.parameter_counts()}; {cfg.device}, " + (f"{cfg.threads} torch threads" if cfg.threads else
-        f"torch threads: one a core that other processes leave free ({torch.get_num_threads()} of {cores.cores} now)"))
+    log(f"parameters: {sac.parameter_counts()}; {cfg.device}" + (f", {sac.helper.threads} threads an update"
+                                                                  if cfg.device == "cpu" else ""))
     try:
         # Lines 7-12, learn the residual TA-MRP
         for ep in range(run.episode, cfg.train_episodes):               # line 8: for n in max-episodes
             env.set_ranges(*curr.ranges())                               # E_r and Ex_r where line 11 left them
             # line 9, interact with the environment, and store in R. The warm-up acts uniformly at random
             # (Spinning Up's start steps), so that the critics see every action before the actor follows them
-            torch.set_num_threads(cores.free())                         # acting follows the machine too
             episode = rollout(env, sac.act if ep >= cfg.warmup else random_action)
             buf.add_episode(episode)
             run.lap("env")
             # line 10, update the policy with SAC
             n = cfg.updates if ep >= cfg.warmup else 0
-            losses = [sac.update(buf.sample(cfg.batch, rng, cfg.augment, cfg.shift))
-                      for _ in cores.steps(n, torch.set_num_threads)]
+            losses = [sac.update(buf.sample(cfg.batch, rng, cfg.augment, cfg.shift)) for _ in range(n)]
             run.lap("update")
             curr.update(bool(episode["term"][-1]))                      # line 11: generate the curriculum, Eq. 16
             learned = stop.learned(env.e_r >= curr.final - 1e-9, lambda: validate(cfg, sac, curr), log, ep)
-            run.save(episode, losses, torch.get_num_threads(), sr15=curr.success_rate, e_r_mm=env.e_r * 1000,
+            run.save(episode, losses, sac.helper.threads, sr15=curr.success_rate, e_r_mm=env.e_r * 1000,
                      ex_r_mm=env.ex_r * 1000, delta=curr.delta)         # a kill loses at most the episode in flight
             if learned:
                 break
@@ -181,7 +177,6 @@ def train(cfg, log=lambda msg: print(msg, flush=True)):
     finally:
         env.close()
         run.close()
-    torch.set_num_threads(cores.free())
     return finish(cfg, sac, curr, env.e_r_max, run.seconds(), log)
 
 
@@ -245,7 +240,8 @@ def make_sac(cfg, device=None):
                       device=device or ("cpu" if cfg.device == "auto" else cfg.device),
                       extra_dim=EXTRA_DIM if cfg.critic_extra else 0, target_encoder=cfg.next_encoder == "target",
                       norm=cfg.fusion_norm, own_actor_encoder=cfg.actor_encoder == "own", aux_reward=cfg.aux_reward,
-                      aux_state=cfg.aux_offset, image=cfg.image_encoder, image_norm=cfg.image_norm)
+                      aux_state=cfg.aux_offset, image=cfg.image_encoder, image_norm=cfg.image_norm,
+                      threads=cfg.threads or min(2, os.cpu_count() or 1))
 
 
 def obs_shapes(cfg):
@@ -320,61 +316,14 @@ def finish(cfg, sac, curr, e_r_max, seconds, log):
 
 
 # ---------------------------------------------------------------- the machine
-class CoreShare:
-    """The cores that other processes leave this one, measured: all CPU time the machine spent (Linux's
-    /proc/stat) less this process's own (os.times), over the time since the last call. With torch's
-    default of a thread a core, one other busy process slowed SAC updates 3-4x on 2 cores (OpenMP's
-    threads wait for each other at every operation, and one of them is always waiting for the core the
-    other process holds); with one thread fewer, not at all (bench/bench_threads.py). The trade: updates
-    on 1 and 2 threads differ in the last digits (a LayerNorm's and a convolution's gradient sums are
-    split by thread), so a run repeats to the last digit only with the threads fixed (`fixed`, --threads).
-    Where /proc/stat cannot be read, every core counts as free. A reading spans at least WINDOW seconds,
-    since a shorter one cannot tell a busy core from an idle one: sooner, the last answer stands, and the
-    first, right after start, waits out the window. Counting every core as free there, and acting on the
-    threads of start-up or of the last updates, once made a tiny run's first episode act for 77.9 s
-    instead of 2.9 s beside two busy runs (2 threads on 2 busy cores: each LSTM step of the policy waited
-    for a core; bench/bench_threads.py measures actions/s right after start)."""
-
-    WINDOW = 0.2                    # s: 20 of /proc/stat's 10 ms ticks a core
-
-    def __init__(self, fixed=0, cores=None):
-        self.fixed, self.cores = fixed, cores or os.cpu_count() or 1
-        self.last, self.answer = self._read(), None
-
-    @staticmethod
-    def _read():
-        try:
-            with open("/proc/stat") as f:
-                j = [int(x) for x in f.readline().split()[1:9]]    # user nice system idle iowait irq softirq steal
-        except (OSError, ValueError):
-            return None
-        own = os.times()
-        return time.monotonic(), (sum(j) - j[3] - j[4]) / os.sysconf("SC_CLK_TCK"), own.user + own.system
-
-    def free(self):
-        """Cores free of other processes since the last call: a core counts as taken once they use 0.3 of it.
-        With `fixed` threads (the user's --threads), always that."""
-        if self.fixed:
-            return self.fixed
-        now = self._read()
-        if now is not None and self.last is not None and now[0] - self.last[0] < self.WINDOW:
-            if self.answer is not None:
-                return self.answer
-            time.sleep(self.WINDOW - (now[0] - self.last[0]))
-            now = self._read()
-        if now is None or self.last is None:
-            return self.cores
-        others = ((now[1] - self.last[1]) - (now[2] - self.last[2])) / (now[0] - self.last[0])
-        self.last, self.answer = now, max(1, min(self.cores, int(self.cores - others + 0.3)))
-        return self.answer
-
-    def steps(self, n, set_threads, every=20):
-        """range(n), calling set_threads(self.free()) before the first step and every `every` steps: a long
-        phase of torch work (an episode's updates) follows the machine as it changes."""
-        for i in range(n):
-            if i % every == 0:
-                set_threads(self.free())
-            yield i
+def use_cpu(cfg):
+    """Torch on the CPU as tacrl runs it: every op on the thread that calls it (an update's second core is
+    policy.Helper's thread, acting needs one), and malloc keeping what it frees (policy.keep_freed_memory). With
+    torch's default of a thread a core, OpenMP's threads wait for each other at every op: beside one busy program
+    that slowed updates 3-4x on 2 cores (bench/bench_threads.py)."""
+    if cfg.device == "cpu":
+        torch.set_num_threads(1)
+        policy.keep_freed_memory()
 
 
 def warn_oversubscribed(prog, threads, processes=1, cores=None):
@@ -560,7 +509,7 @@ def run_evaluation(cfg):
     if pi is not None and cfg.error_mm > pi.meta["e_r_max"] * 1000 + 1e-6:   # Eq. 11's ROI would widen
         raise ArgError(f"--error-mm {cfg.error_mm:g}: this policy's view covers {pi.meta['e_r_max'] * 1000:g} mm")
     print(f"config: {asdict(cfg)}", flush=True)
-    torch.set_num_threads(CoreShare(cfg.threads).free())
+    use_cpu(cfg)
     with evaluate.eval_env(cfg.task, pi, cfg.context, cfg.roi, cfg.clearance_mm, cfg.error_mm, cfg.gui) as env:
         video = evaluate.open_video(cfg.video, env.world.render_external().shape[1::-1]) if cfg.video else None
         act = pi if pi is not None else baselines.make(cfg.eval, env)

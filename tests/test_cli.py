@@ -1,12 +1,10 @@
 """tacrl.py's command line: every flag described once, a user's mistake is one line and exit code 2,
 the hand-designed policy's evaluation row, a corrupt checkpoint or policy file is a one-line error."""
 import dataclasses
-import itertools
 import json
 import os
 import subprocess
 import sys
-import time
 
 import cv2
 import pytest
@@ -85,40 +83,3 @@ def test_a_video_format_this_opencv_cannot_write_is_one_line_before_any_work(tmp
     err = capsys.readouterr().err
     assert (ok == 0 and (tmp_path / "ep.mp4").stat().st_size > 0) or \
         (ok == 2 and err.count("\n") == 1 and "no H.264 encoder; name a .webm" in err and not os.listdir(tmp_path))
-
-
-def test_core_share_leaves_a_core_to_another_busy_process(monkeypatch):
-    # readings: (wall s, CPU s of the whole machine, CPU s of this process); 2 cores
-    readings = itertools.chain([(0, 0, 0), (0.01, 0.01, 0.01), (0.2, 0.2, 0.01), (1.2, 1.2, 1.0), (2.2, 3.15, 1.98),
-                                (3.2, 4.4, 2.92), (4.2, 5.65, 3.92), (5.2, 7.61, 4.9), (5.21, 7.63, 4.91)],
-                               itertools.repeat(None))         # then as where /proc/stat cannot be read
-    monkeypatch.setattr(tacrl.CoreShare, "_read", staticmethod(lambda: next(readings)))
-    slept = []
-    monkeypatch.setattr(tacrl.time, "sleep", slept.append)
-    share = tacrl.CoreShare(cores=2)
-    assert share.free() == 1          # right after start: it waits out the window; another process used 0.95
-    assert slept == [pytest.approx(0.19)]
-    assert share.free() == 2          # only this process ran: the other core is free
-    assert share.free() == 1          # another process used 0.97 of a core
-    assert share.free() == 1          # 0.31 of one: still counted as taken
-    assert share.free() == 2          # 0.25: noise, not a busy program
-    assert share.free() == 1          # 0.98
-    assert share.free() == 1          # 10 ms is too short to say: the last answer stands, without a wait
-    assert len(slept) == 1
-    assert share.free() == 2          # /proc/stat unreadable: every core
-    assert tacrl.CoreShare(fixed=3, cores=2).free() == 3                 # --threads is the user's to set
-    calls = []
-    monkeypatch.setattr(tacrl.CoreShare, "free", lambda self: len(calls) + 1)
-    assert list(tacrl.CoreShare(cores=2).steps(45, calls.append, every=20)) == list(range(45))
-    assert calls == [1, 2, 3]         # before updates 0, 20 and 40
-
-
-def test_the_first_core_share_after_start_sees_a_busy_process():
-    # no mock: right after start (where a run chooses its first threads) a busy loop's core is not counted free
-    hog = subprocess.Popen([sys.executable, "-c", "while True: pass"])
-    try:
-        time.sleep(0.5)                                   # its interpreter started and spinning
-        assert tacrl.CoreShare().free() <= max(1, (os.cpu_count() or 1) - 1)
-    finally:
-        hog.kill()
-        hog.wait()

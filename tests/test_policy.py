@@ -2,6 +2,7 @@
 the TD target's time-out handling, the replay buffer, checkpoints, what the actor may read, SAC
 solving a toy task, and that it lifts out with numpy and torch alone."""
 import ast
+import copy
 import io
 import os
 import sys
@@ -136,6 +137,42 @@ def test_checkpoint_round_trip_reproduces_actions():
     torch.manual_seed(6)
     sac2.update(b)
     np.testing.assert_allclose(sac.act(o, deterministic=True), sac2.act(o, deterministic=True), atol=1e-6)
+
+
+@pytest.fixture
+def one_thread():
+    """torch.set_num_threads(1) for the test, as tacrl runs: each op on the thread that calls it."""
+    n = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(n)
+
+
+def one_update(sac, batch, seed=1):
+    torch.manual_seed(seed)                        # the actor's samples
+    losses = sac.update(batch)
+    return losses, {f"{m}.{k}": v for m, d in sac.state_dict().items() if m.endswith(("enc", "q", "actor", "targ"))
+                    for k, v in d.items()}
+
+
+@pytest.mark.parametrize("state_dim", [0, 7])      # the paper's critics, the privileged ones
+def test_an_update_in_halves_is_the_whole_batch_update_within_float_tolerance_on_one_thread_or_two(state_dim,
+                                                                                                      one_thread):
+    rng = np.random.default_rng(4)
+    buf = policy.ReplayBuffer(200, {"image": (80, 80), "pose_hist": (32, 6), "wrench_hist": (32, 6), "state": (7,)})
+    obs = {**fake_obs(rng, 101), "state": rng.normal(size=(101, 7)).astype(np.float32)}
+    buf.add_episode({"obs": obs, "act": rng.uniform(-1, 1, (100, 6)), "rew": rng.normal(size=100), "term": np.zeros(100)})
+    batch = buf.sample(64, rng)
+    torch.manual_seed(0)
+    sac = policy.SAC("ts-ptv", state_dim=state_dim, threads=2)
+    whole, one = copy.deepcopy(sac), copy.deepcopy(sac)
+    whole.encode = lambda enc, o: enc(o)           # the update before the halves: each encoder on the whole batch
+    one.helper = policy.Helper(1)
+    (l2, p2), (lw, pw), (l1, p1) = (one_update(s, batch) for s in (sac, whole, one))
+    assert l2 == pytest.approx(lw, rel=1e-5) and p2.keys() == pw.keys()
+    for k in pw:                                    # Adam's first step moves each weight by about 3e-4
+        torch.testing.assert_close(p2[k], pw[k], atol=1e-6, rtol=1e-5, msg=k)
+    assert l1 == l2 and all(torch.equal(p1[k], p2[k]) for k in p2)     # one thread or two: the same numbers
 
 
 @pytest.mark.parametrize("privileged", [False, True])
