@@ -317,8 +317,8 @@ def jitter(images, rng, s):
 def keep_freed_memory():
     """Let glibc's malloc keep what it frees (M_MMAP_THRESHOLD 32 MB, M_TRIM_THRESHOLD 1 GB) instead of handing
     blocks back to the kernel: otherwise every update's LSTM and convolution buffers (a few MB) come back as fresh
-    pages that fault in one by one, which made the LSTM's forward and backward 2.2x slower (bench/profile_update.py).
-    A run then holds its largest working set. Process-wide; a no-op where libc is not glibc."""
+    pages that fault in one by one, and the LSTM's forward and backward took over twice as long. A run then holds
+    its largest working set. Process-wide; a no-op where libc is not glibc."""
     try:
         libc = ctypes.CDLL("libc.so.6")
         libc.mallopt(-3, 32 << 20)          # M_MMAP_THRESHOLD: blocks up to 32 MB from the heap, not mmap
@@ -351,6 +351,8 @@ def in_halves(f, params, o, helper):
     """f(o) for a batch dict o, computed as its two halves, side by side with a helper of two threads; the
     gradient reaches params (f's parameters) as from f(o). Two halves, with one thread or two: the same numbers."""
     n = len(next(iter(o.values()))) // 2
+    if n == 0:                                      # a batch of one
+        return f(o)
     halves = [{k: v[:n] for k, v in o.items()}, {k: v[n:] for k, v in o.items()}]
     if not torch.is_grad_enabled():                 # (grad mode is per thread)
         return torch.cat(helper.both(torch.no_grad()(f), *halves))
@@ -397,6 +399,11 @@ class SAC:
     they read StateEncoder(obs), which includes obs['state'] (state_dim,), and the actor has a
     multimodal encoder of its own, trained through the actor loss. The critics then need not
     learn to see the hole before they can say which way it lies.
+
+    On the CPU each multimodal encoder reads a batch as its two halves (encode, in_halves): with threads=2 the
+    second half runs on a helper thread, forward and backward, which puts the LSTM and the CNN, most of an update,
+    on two cores. Call torch.set_num_threads(1) first (as tacrl.use_cpu does), so that every op runs on the thread
+    that calls it: the numbers are then the same with threads=1 or 2, and a run repeats on any machine.
     """
 
     def __init__(self, obs_kind="ts-ptv", pose_scale=np.ones(6), wrench_scale=np.ones(6), act_dim=6,

@@ -215,7 +215,7 @@ class Collector:
             self.next = (ep, ranges)
             return
         if ep >= self.cfg.warmup and self.sent["weights"] is None:      # else: restored from a checkpoint
-            self.sent["weights"] = {k: {n: t.clone() for n, t in m.state_dict().items()}
+            self.sent["weights"] = {k: {n: t.detach().to("cpu", copy=True) for n, t in m.state_dict().items()}
                                     for k, m in (("enc", self.sac.actor_enc), ("actor", self.sac.actor))}
         self.sent.update(ep=ep, ranges=tuple(map(float, ranges)), env_rng=self.env_rng.bit_generator.state)
         self.conn.send(self.sent)

@@ -35,13 +35,15 @@ def checkout(base):
 
 
 def timed_run(tree, flags, run_dir):
-    """(wall s, training s) of the short run in `tree`."""
+    """(wall s, training s, update phases s, env s, env steps) of the short run in `tree`: its episodes differ
+    where its numbers do (a failed episode runs 120 steps), so the update phases are compared apart."""
     t0 = time.perf_counter()
     subprocess.run([sys.executable, os.path.join(tree, "tacrl.py"), *RUN, *flags, "--run-dir", run_dir], cwd=tree,
                    check=True, stdout=subprocess.DEVNULL)
     wall = time.perf_counter() - t0
     with open(os.path.join(run_dir, "metrics.csv")) as f:
-        return wall, float(list(csv.DictReader(f))[-1]["elapsed_s"])
+        rows = list(csv.DictReader(f))
+    return (wall, float(rows[-1]["elapsed_s"]), *(sum(float(r[k]) for r in rows) for k in ("update_s", "env_s", "steps")))
 
 
 def main():
@@ -57,13 +59,14 @@ def main():
         for r in range(a.rounds):
             for k, (tree, flags) in trees.items():       # in turns, so that the machine's drift hits both alike
                 times[k].append(timed_run(tree, flags, os.path.join(tmp, f"{r}-{k.split()[0]}")))
-                print(f"round {r + 1}, {k:15s} wall {times[k][-1][0]:6.1f} s, training {times[k][-1][1]:6.1f} s",
-                      flush=True)
+                w, t, u, e, n = times[k][-1]
+                print(f"round {r + 1}, {k:15s} wall {w:6.1f} s, training {t:6.1f} s: update phases {u:5.1f} s, "
+                      f"env {e:5.1f} s ({n:.0f} steps)", flush=True)
     med = {k: np.median(np.array(v), axis=0) for k, v in times.items()}
-    (bw, bt), (tw, tt) = med[f"base {commit}"], med["this checkout"]
-    print(f"medians of {a.rounds}: base {commit} {bw:.1f} s wall ({bt:.1f} s training), this checkout "
-          f"{' '.join(a.flags)} {tw:.1f} s wall ({tt:.1f} s training): {bw / tw:.2f}x the base's speed, "
-          f"{bt / tt:.2f}x its training episodes a minute")
+    (bw, bt, bu, _, _), (tw, tt, tu, _, _) = med[f"base {commit}"], med["this checkout"]
+    print(f"medians of {a.rounds}: base {commit} {bw:.1f} s wall ({bt:.1f} s training, {bu:.1f} s updating), this "
+          f"checkout {' '.join(a.flags)} {tw:.1f} s wall ({tt:.1f} s training, {tu:.1f} s updating): {bw / tw:.2f}x "
+          f"the base's speed, {bt / tt:.2f}x its training episodes a minute, {bu / tu:.2f}x its updates/s")
 
 
 if __name__ == "__main__":

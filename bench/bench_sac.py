@@ -54,12 +54,14 @@ def main():
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--batch", type=int, default=64)
     a = ap.parse_args()
+    tacrl.use_cpu(tacrl.Config(device="cpu"))          # as a run: one torch thread an op, malloc keeping what it frees
     rng = np.random.default_rng(0)
     buf = filled_buffer(rng)
-    print(f"torch {torch.__version__}, {torch.get_num_threads()} threads, batch {a.batch}")
+    threads = tacrl.make_sac(tacrl.Config(), "cpu").helper.threads
+    print(f"torch {torch.__version__}, {threads} threads an update (the batch's halves side by side), batch {a.batch}")
     for obs, critic in (("ts-ptv", "privileged"), ("ts-ptv", "multimodal"), ("ts-pt", "multimodal"),
                         ("pt", "multimodal")):
-        r = [updates_per_s(policy.SAC(obs, tacrl.POSE_SCALE, sim.F_MAX6,
+        r = [updates_per_s(policy.SAC(obs, tacrl.POSE_SCALE, sim.F_MAX6, threads=threads,
                                       state_dim=tacrl.STATE_DIM if critic == "privileged" else 0),
                            buf, rng, a.batch, a.updates) for _ in range(a.repeats)]
         print(f"{obs:6s} critics {critic:10s}: median {np.median(r):5.1f} updates/s "

@@ -54,7 +54,7 @@ def parts(sac, o, a, calls, repeats):
             continue
         params = [p for p in enc.parameters() if p.requires_grad]
         with torch.no_grad():
-            out[f"{name} (and its target): forward, no gradient (o')"] = ms(lambda: sac.encode(enc, o))
+            out[f"{name}: forward of o', no gradient (the TD target)"] = ms(lambda: sac.encode(enc, o))
         out[f"{name}: forward + backward (o)"] = ms(grads(lambda: sac.encode(enc, o), params))
         inputs = {"CNN": (enc.image, o["image"]) if enc.image is not None else None,
                   "LSTM": (getattr(enc, "series", None), torch.cat([o["pose_hist"] / enc.pose_scale,

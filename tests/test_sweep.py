@@ -102,7 +102,8 @@ def test_a_sweep_runs_as_ray_tasks_on_a_local_instance(tmp_path, monkeypatch):
     (["--", "--task", "peg", "--seed", "3"], "the sweep sets --seed, --run-dir and --threads itself"),
     (["--seeds", "0,0", "--", "--task", "peg"], "--seeds takes distinct comma-separated values"),
     (["--", "--task", "peg", "--lr", "2"], "--lr"),
-    (["--threads", "0", "--", "--task", "peg"], "--threads must be at least 1"),
+    (["--threads", "0", "--", "--task", "peg"], "--threads"),
+    (["--threads", "3", "--", "--task", "peg"], "--threads"),              # an update has two halves
     (["--seeds", "2,-3", "--", "--task", "peg"], "--seed must be within 0..2147483647, not -3"),   # every seed first
 ])
 def test_sweep_mistakes_are_one_line_and_exit_2(argv, message, capsys, tmp_path):

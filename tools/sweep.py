@@ -234,7 +234,7 @@ def main(argv=None):
     ap.add_argument("--parallel", type=int, default=0, help="runs at once, locally (default: one a core)")
     ap.add_argument("--ray", default="", metavar="ADDRESS", help="run as Ray tasks: 'local' (a Ray instance on this "
                     "machine), 'auto' (the cluster this machine is in), or a cluster's address")
-    ap.add_argument("--threads", type=int, default=1, help="torch threads a run (default: 1)")
+    ap.add_argument("--threads", type=int, default=1, help="threads an update of each run, 1 or 2 (default: 1)")
     ap.add_argument("--list", action="store_true", help="list the experiments' runs and their state, and stop")
     ap.add_argument("--dry-run", action="store_true", help="print the commands, run nothing")
     a = ap.parse_args(argv)
@@ -251,8 +251,8 @@ def main(argv=None):
                      f.split("=")[0] in ("--seed", "--run-dir", "--resume", "--eval", "--threads") for f in flags):
         raise ArgError("the flags after -- are a run's: the sweep sets --seed, --run-dir and --threads itself "
                        "(--eval and --resume are for one run: tacrl.py)")
-    if a.threads < 1 or a.parallel < 0:
-        raise ArgError("--threads must be at least 1 and --parallel at least 0")
+    if not 1 <= a.threads <= 2 or a.parallel < 0:
+        raise ArgError("--threads must be 1 or 2 and --parallel at least 0")
     jobs = plan(names, parse_list(a.seeds, "--seeds", int), a.root, flags)
     todo = [j for j in jobs if j.state != "done"]
     cores = os.cpu_count() or 1
