@@ -101,8 +101,6 @@ class Config:
                                          "each image standardised by its own mean and spread (image; ours)",
                                 policy.IMAGE_NORMS)
     updates: int = train_opt(200, "SAC gradient steps after each episode (Sec. 5.1.1: 200)", bounds=(0, None))
-    lag: int = train_opt(0, "1: collect the next episode in a second process while the updates run, with the policy one "
-                            "update phase behind (0: between the updates, as Algorithm 1)", bounds=(0, 1))
     warmup: int = train_opt(20, "random-action episodes before the first update (the authors' loop: 20)", bounds=(0, None))
     batch: int = train_opt(64, "SAC batch size", bounds=(1, None))
     buffer: int = train_opt(50000, "replay capacity, transitions (at least an episode and a batch)", bounds=(1, None))
@@ -131,7 +129,7 @@ EXTRA_DIM = 3                                                        # what --cr
 RESUME_MAY_SET = ("resume", "train_episodes", "stop_held", "threads", "track")   # to extend a run; nothing else changes
 NOT_LEARNING = ("eval", "resume", "run_dir", "track", "threads", "device", "gui", "episodes", "json", "video", "eval_levels",
                 "train_episodes", "stop_held")     # how a run is run, evaluated or extended, not what it learns
-RUN_NAME_TAGS = (("clearance_mm", "c"), ("updates", "u"), ("lag", "lag"), ("warmup", "w"), ("batch", "b"), ("buffer", "buf"),
+RUN_NAME_TAGS = (("clearance_mm", "c"), ("updates", "u"), ("warmup", "w"), ("batch", "b"), ("buffer", "buf"),
                  ("lr", "lr"), ("gamma", "g"), ("target_entropy", "ent"))   # default_run_dir's tail, where not the default
 VAL_SEED, VAL_EPISODES, VAL_WINS, VAL_EVERY, VAL_PASSES = 2000, 20, 19, 10, 2   # stop when learned: 19 of 20 twice
 
@@ -143,13 +141,13 @@ def train(cfg, log=lambda msg: print(msg, flush=True)):
     torch.manual_seed(cfg.seed)
     # Lines 1-5, initialize the learning architecture: the env holds the hand-designed part of the skill (2: tau(t)
     # and K, Eq. 8-9, 14), the error range E_r (3), the ROI for E_r (4: Eq. 11, at the largest) and the reward (5)
+    env = make_env(cfg, gui=cfg.gui)
+    env.np_random = np.random.default_rng(cfg.seed)
     curr = curriculum.Curriculum(cfg.curriculum, final=cfg.error_mm / 1000)     # line 6: Eq. 16's parameters
     sac, stop, rng = make_sac(cfg), StopRule(cfg), np.random.default_rng(cfg.seed + 1)   # (rng: replay sampling)
-    collect = Collector(cfg, sac)                          # line 9's env: here, or (--lag 1) in a second process
     buf = policy.ReplayBuffer(cfg.buffer, obs_shapes(cfg), nstep=cfg.nstep, gamma=cfg.gamma)    # R
-    state = {"sac": sac, "curriculum": curr, "stop": stop, "env_rng": collect.env_rng, "sample_rng": rng}
-    run = rundir.Run(cfg, {**state, **({"collector": collect} if cfg.lag else {})}, buf, log,
-                     probe_update=cfg.updates * rundir.update_seconds(sac, zero_batch(buf, cfg.batch)))
+    run = rundir.Run(cfg, {"sac": sac, "curriculum": curr, "stop": stop, "env_rng": env.np_random, "sample_rng": rng},
+                     buf, log, probe_update=cfg.updates * rundir.update_seconds(sac, zero_batch(buf, cfg.batch)))
     if run.extended:                                       # a finished run trained on validates anew
         stop.passes = 0
     log(f"config: {asdict(cfg)}")
@@ -157,123 +155,29 @@ def train(cfg, log=lambda msg: print(msg, flush=True)):
                                                                   if cfg.device == "cpu" else ""))
     try:
         # Lines 7-12, learn the residual TA-MRP
-        if run.episode < cfg.train_episodes:
-            collect.start(run.episode, curr.ranges())                   # E_r and Ex_r where line 11 left them
         for ep in range(run.episode, cfg.train_episodes):               # line 8: for n in max-episodes
+            env.set_ranges(*curr.ranges())                               # E_r and Ex_r where line 11 left them
             # line 9, interact with the environment, and store in R. The warm-up acts uniformly at random
             # (Spinning Up's start steps), so that the critics see every action before the actor follows them
-            episode = collect.result()
+            episode = rollout(env, sac.act if ep >= cfg.warmup else random_action)
             buf.add_episode(episode)
-            curr.update(bool(episode["term"][-1]))                      # line 11: generate the curriculum, Eq. 16
-            if ep + 1 < cfg.train_episodes:                             # --lag 1: the next episode from now on
-                collect.start(ep + 1, curr.ranges())
             run.lap("env")
             # line 10, update the policy with SAC
             n = cfg.updates if ep >= cfg.warmup else 0
             losses = [sac.update(buf.sample(cfg.batch, rng, cfg.augment, cfg.shift)) for _ in range(n)]
             run.lap("update")
-            e_r, ex_r = episode["ranges"]
-            learned = stop.learned(e_r >= curr.final - 1e-9, lambda: validate(cfg, sac, curr), log, ep)
-            run.save(episode, losses, sac.helper.threads, sr15=curr.success_rate, e_r_mm=e_r * 1000, ex_r_mm=ex_r * 1000,
-                     delta=curr.delta)         # a kill loses at most the episode in flight (with --lag 1, two)
+            curr.update(bool(episode["term"][-1]))                      # line 11: generate the curriculum, Eq. 16
+            learned = stop.learned(env.e_r >= curr.final - 1e-9, lambda: validate(cfg, sac, curr), log, ep)
+            run.save(episode, losses, sac.helper.threads, sr15=curr.success_rate, e_r_mm=env.e_r * 1000,
+                     ex_r_mm=env.ex_r * 1000, delta=curr.delta)         # a kill loses at most the episode in flight
             if learned:
                 break
     except KeyboardInterrupt:
         raise KeyboardInterrupt(f"every finished episode is saved; continue with --resume {cfg.run_dir}")
     finally:
-        collect.close()
-        run.close()
-    return finish(cfg, sac, curr, collect.e_r_max, run.seconds(), log)
-
-
-class Collector:
-    """Algorithm 1's line 9, episode after episode: start(ep, ranges) begins episode ep at the curriculum's
-    (E_r, Ex_r), result() returns it as rollout does, with its ranges. Without --lag, here: result() acts with
-    the policy as the updates left it. With --lag 1, in a second process (collector_main) that acts with the
-    weights start() sends, while this one updates: the policy one update phase behind (as in actor-learner
-    systems such as IMPALA, Espeholt et al. 2018), and the env's CPU time off the updates' path. The random
-    streams of acting (the errors, the sensor noise, the Gaussian's samples) then live there: this side keeps
-    them, and the weights the episode in flight acts with, for the checkpoint (state_dict)."""
-
-    def __init__(self, cfg, sac):
-        self.cfg, self.sac, self.env, self.proc = cfg, sac, None, None
-        self.env_rng = np.random.default_rng(cfg.seed)                  # the errors' generator (Eq. 13-15)
-        self.e_r_max = max(cfg.error_mm, sim.E_R_FINAL * 1000) / 1000   # as the env's (sim.AssemblyEnv's e_r_max)
-        if not cfg.lag:
-            self.env = make_env(cfg, gui=cfg.gui)
-            self.env.np_random = self.env_rng
-            return
-        import multiprocessing as mp
-        self.conn, child = mp.get_context("spawn").Pipe()
-        self.proc = mp.get_context("spawn").Process(target=collector_main, args=(cfg, child), daemon=True)
-        self.proc.start()
-        g = torch.Generator().manual_seed(cfg.seed + 2)                 # the actor's samples, there
-        self.sent = {"torch_rng": g.get_state(), "weights": None, "env_rng": self.env_rng.bit_generator.state}
-
-    def start(self, ep, ranges):
-        if self.proc is None:
-            self.next = (ep, ranges)
-            return
-        if ep >= self.cfg.warmup and self.sent["weights"] is None:      # else: restored from a checkpoint
-            self.sent["weights"] = {k: {n: t.detach().to("cpu", copy=True) for n, t in m.state_dict().items()}
-                                    for k, m in (("enc", self.sac.actor_enc), ("actor", self.sac.actor))}
-        self.sent.update(ep=ep, ranges=tuple(map(float, ranges)), env_rng=self.env_rng.bit_generator.state)
-        self.conn.send(self.sent)
-
-    def result(self):
-        if self.proc is None:
-            ep, ranges = self.next
-            self.env.set_ranges(*ranges)
-            episode = rollout(self.env, self.sac.act if ep >= self.cfg.warmup else random_action)
-            return {**episode, "ranges": (self.env.e_r, self.env.ex_r)}
-        try:
-            episode, env_rng, torch_rng = self.conn.recv()
-        except EOFError:
-            raise Failed("the collecting process ended") from None
-        self.env_rng.bit_generator.state = env_rng
-        self.sent = {"torch_rng": torch_rng, "weights": None, "env_rng": env_rng}   # the next start: the weights of then
-        return episode
-
-    def state_dict(self):                                              # what the episode in flight started with
-        return {**self.sent, "env_rng": json.dumps(self.sent["env_rng"])}
-
-    def load_state_dict(self, d):
-        self.sent = {**d, "env_rng": json.loads(d["env_rng"])}
-        self.env_rng.bit_generator.state = self.sent["env_rng"]
-
-    def close(self):
-        if self.env is not None:
-            self.env.close()
-        if self.proc is not None:
-            self.conn.close()
-            self.proc.join(timeout=10)
-            if self.proc.is_alive():
-                self.proc.kill()
-
-
-def collector_main(cfg, conn):
-    """--lag 1's second process: an env and an actor of its own; for each message of Collector.start, one
-    episode with those weights and random states, sent back with the states it left."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)               # Ctrl-C is the learner's to handle
-    use_cpu(cfg)
-    env = make_env(cfg)
-    enc = policy.Encoder(cfg.obs, POSE_SCALE, sim.F_MAX6, norm=cfg.fusion_norm, image=cfg.image_encoder,
-                         image_norm=cfg.image_norm)
-    actor = policy.Actor(enc.out_dim)
-    try:
-        while True:
-            m = conn.recv()
-            env.set_ranges(*m["ranges"])
-            env.np_random.bit_generator.state = m["env_rng"]
-            torch.set_rng_state(m["torch_rng"])
-            if m["weights"] is not None:
-                enc.load_state_dict(m["weights"]["enc"])
-                actor.load_state_dict(m["weights"]["actor"])
-            act = (lambda o: policy.act(enc, actor, o)) if m["weights"] is not None else random_action
-            episode = {**rollout(env, act), "ranges": (env.e_r, env.ex_r)}
-            conn.send((episode, env.np_random.bit_generator.state, torch.get_rng_state()))
-    except (EOFError, OSError):                                 # the learner closed its end, or ended
         env.close()
+        run.close()
+    return finish(cfg, sac, curr, env.e_r_max, run.seconds(), log)
 
 
 def rollout(env, act):
@@ -423,12 +327,12 @@ def use_cpu(cfg):
 
 
 def warn_oversubscribed(prog, threads, processes=1, cores=None):
-    """A warning line on stderr where `processes` runs of `threads` torch threads each ask for more threads
-    than there are cores: on 2 cores, two runs with 2 threads each slowed an update phase from 6 s to 231 s."""
+    """A warning line on stderr where `processes` runs of `threads` threads an update each ask for more threads
+    than there are cores: they can only take turns, each run slower than alone on a core."""
     cores = cores or os.cpu_count() or 1
     if threads * processes > cores:
-        print(f"{prog}: warning: {processes} x {threads} torch threads on {cores} cores: they will wait on each "
-              f"other (use --threads {max(1, cores // processes)})", file=sys.stderr)
+        print(f"{prog}: warning: {processes} x {threads} threads an update on {cores} cores: they will take turns "
+              f"(use --threads {max(1, cores // processes)})", file=sys.stderr)
 
 
 # ---------------------------------------------------------------- the command line
@@ -500,8 +404,7 @@ def check(cfg):
              f"--eval-levels must be comma-separated error ranges in 0..{e_r_max:g} mm (the run's env covers "
              f"--error-mm, and at least 20), not {cfg.eval_levels!r}"),
             (cfg.device == "cuda" and not torch.cuda.is_available(), "--device cuda: no CUDA device is available"),
-            (cfg.gui and scene.display_problem(), f"--gui: {scene.display_problem()}"),
-            (cfg.gui and cfg.lag and not cfg.eval, "--gui shows the training env, which --lag 1 runs in a second process")]:
+            (cfg.gui and scene.display_problem(), f"--gui: {scene.display_problem()}")]:
         if bad:
             raise ArgError(msg)
     if cfg.track:

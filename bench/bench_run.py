@@ -1,6 +1,6 @@
 """A short default training run, timed for this checkout and for a base commit in turns, in one invocation:
 
-    python bench/bench_run.py [--base f17a2a8] [--rounds 2] [-- extra tacrl.py flags, e.g. --lag 1]
+    python bench/bench_run.py [--base f17a2a8] [--rounds 2] [-- extra tacrl.py flags, e.g. --threads 1]
 
 The run: `python tacrl.py --task peg --train-episodes 12 --warmup 2 --stop-held 0 --episodes 1 --eval-levels 20`
 (12 episodes, 200 updates each from the third, one evaluation episode), in a new run dir each time. The base

@@ -5,10 +5,10 @@ each batch) is chosen from. Also the policy's actions/s (one observation at a ti
     python bench/bench_threads.py [--updates 80] [--repeats 3]
 
 Each cell runs in a fresh process, since OpenMP reads its settings once, when torch loads. "Busy" runs one
-single-threaded busy loop beside it, as any other program on a user's machine would (a second training run,
-the env process of --lag 1, a compiler). The table prints medians over `repeats` and two ratios: beside a busy
-process against alone (OpenMP's threads wait for each other at every op, so torch's own default slowed 3-4x
-there), and alone against torch's own default (2 OpenMP threads on 2 cores, the whole batch).
+single-threaded busy loop beside it, as any other program on a user's machine would (a second training run, a
+compiler). The table prints medians over `repeats` and two ratios: beside a busy process against alone
+(OpenMP's threads wait for each other at every op, so torch's own default slowed 3-4x there), and alone
+against torch's own default (2 OpenMP threads on 2 cores, the whole batch).
 Run nothing else heavy beside it; compare ratios from one run, not figures across runs.
 """
 import argparse

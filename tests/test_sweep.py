@@ -127,4 +127,5 @@ def test_runs_never_ask_for_more_threads_than_cores_and_a_warning_says_where_the
     out, err = capsys.readouterr()
     assert err == "" and out.count("--threads 1") == 3
     assert tacrl.command("sweep", lambda: sweep.main([*argv, "--threads", "2", "--parallel", "2", "--", *TINY])) == 0
-    assert capsys.readouterr().err.startswith("sweep: warning: 2 x 2 torch threads on 2 cores")
+    err = capsys.readouterr().err
+    assert err.startswith("sweep: warning:") and "--threads 1" in err
