@@ -49,10 +49,11 @@ FEAT = 6                      # features per modality
 LOG_STD_MIN, LOG_STD_MAX = -5.0, 2.0
 
 
-def mlp(n_in, n_out, hidden=(256, 256)):
+def mlp(n_in, n_out, hidden=(256, 256), norm=False):
+    """Linear -> ReLU layers (norm: Linear -> LayerNorm -> ReLU, as RLPD's critics, Ball et al. 2023) -> Linear."""
     layers, d = [], n_in
     for h in hidden:
-        layers += [nn.Linear(d, h), nn.ReLU()]
+        layers += [nn.Linear(d, h), *([nn.LayerNorm(h)] if norm else []), nn.ReLU()]
         d = h
     return nn.Sequential(*layers, nn.Linear(d, n_out))
 
@@ -223,11 +224,11 @@ class Actor(nn.Module):
 
 
 class TwinQ(nn.Module):
-    """Two Q heads, each a 2 x 256 MLP on [fusion vector, action]."""
+    """Two Q heads, each a 2 x 256 MLP on [fusion vector, action] (norm: LayerNorm after each hidden layer)."""
 
-    def __init__(self, n_feat, act_dim=6):
+    def __init__(self, n_feat, act_dim=6, norm=False):
         super().__init__()
-        self.q1, self.q2 = mlp(n_feat + act_dim, 1), mlp(n_feat + act_dim, 1)
+        self.q1, self.q2 = mlp(n_feat + act_dim, 1, norm=norm), mlp(n_feat + act_dim, 1, norm=norm)
 
     def forward(self, z, a):
         za = torch.cat([z, a], -1)
@@ -409,7 +410,7 @@ class SAC:
     def __init__(self, obs_kind="ts-ptv", pose_scale=np.ones(6), wrench_scale=np.ones(6), act_dim=6,
                  lr=3e-4, gamma=0.95, tau=0.005, init_alpha=0.1, target_entropy=None, state_dim=0, device="cpu",
                  extra_dim=0, target_encoder=True, norm="joint", own_actor_encoder=False, aux_reward=0.0,
-                 aux_state=0.0, image="cnn", image_norm="fixed", threads=1):
+                 aux_state=0.0, image="cnn", image_norm="fixed", q_norm=False, threads=1):
         self.device, self.gamma, self.tau = torch.device(device), gamma, tau
         self.helper = Helper(threads)        # threads=2: each multimodal encoder's batch as two halves, side by side
         # the paper's critics lend the actor their encoder, unless it has one of its own (as it always has with
@@ -419,7 +420,7 @@ class SAC:
         enc = lambda: Encoder(obs_kind, pose_scale, wrench_scale, norm=norm, image=image,  # noqa: E731
                               image_norm=image_norm).to(self.device)
         self.enc = StateEncoder(state_dim, pose_scale, wrench_scale).to(self.device) if state_dim else enc()
-        self.q = TwinQ(self.enc.out_dim + extra_dim, act_dim).to(self.device)
+        self.q = TwinQ(self.enc.out_dim + extra_dim, act_dim, norm=q_norm).to(self.device)
         self.enc_targ, self.q_targ = copy.deepcopy(self.enc), copy.deepcopy(self.q)
         for p in list(self.enc_targ.parameters()) + list(self.q_targ.parameters()):
             p.requires_grad_(False)

@@ -97,6 +97,8 @@ class Config:
                                           "features (modality)", ("joint", "modality"))
     image_encoder: str = train_opt("cnn", "the image's encoder: the paper's CNN, or keypoints from a spatial softmax "
                                           "(Levine et al. 2016; ours)", tuple(policy.IMAGE_ENCODERS))
+    q_norm: bool = train_opt(False, "LayerNorm after each hidden layer of the twin Q heads (RLPD, Ball et al. 2023; ours, "
+                                    "issue 50's study)")
     image_norm: str = train_opt("fixed", "the image's grey levels as the encoder reads them: x / 255 - 0.5 (fixed), or "
                                          "each image standardised by its own mean and spread (image; ours)",
                                 policy.IMAGE_NORMS)
@@ -240,7 +242,7 @@ def make_sac(cfg, device=None):
                       device=device or ("cpu" if cfg.device == "auto" else cfg.device),
                       extra_dim=EXTRA_DIM if cfg.critic_extra else 0, target_encoder=cfg.next_encoder == "target",
                       norm=cfg.fusion_norm, own_actor_encoder=cfg.actor_encoder == "own", aux_reward=cfg.aux_reward,
-                      aux_state=cfg.aux_offset, image=cfg.image_encoder, image_norm=cfg.image_norm,
+                      aux_state=cfg.aux_offset, image=cfg.image_encoder, image_norm=cfg.image_norm, q_norm=cfg.q_norm,
                       threads=cfg.threads or min(2, os.cpu_count() or 1))
 
 
@@ -438,7 +440,7 @@ def check(cfg):
 
 def default_run_dir(cfg):
     """runs/<task>-[vanilla-]<obs>-<curriculum>[-e<E_r mm>][-roi-<roi>][-ctx-<context>][-<critic>][-aug<s>][-shift<px>][-rand-<families>][-extra]
-    [-next-online][-norm-modality][-own-actor-enc][-n<steps>][-auxr<w>][-auxo<w>][-img-<encoder>][-imgnorm-<norm>]
+    [-next-online][-norm-modality][-own-actor-enc][-n<steps>][-auxr<w>][-auxo<w>][-img-<encoder>][-imgnorm-<norm>][-qnorm]
     [-<tag><value> of RUN_NAME_TAGS]-s<seed>:
     the flags of the baselines, ablations and options are in its name, so that no run overwrites another's directory."""
     name = f"{cfg.task}-{'vanilla-' if cfg.vanilla else ''}{cfg.obs}-{cfg.curriculum}"
@@ -458,6 +460,7 @@ def default_run_dir(cfg):
     name += f"-auxo{cfg.aux_offset:g}" if cfg.aux_offset else ""
     name += f"-img-{cfg.image_encoder}" if cfg.image_encoder != Config.image_encoder else ""
     name += f"-imgnorm-{cfg.image_norm}" if cfg.image_norm != Config.image_norm else ""
+    name += "-qnorm" if cfg.q_norm else ""
     for field, tag in RUN_NAME_TAGS:                    # the scene and SAC's numbers, where not the defaults
         value = getattr(cfg, field)
         name += f"-{tag}{value:g}" if value != getattr(Config, field) else ""

@@ -139,6 +139,19 @@ def test_checkpoint_round_trip_reproduces_actions():
     np.testing.assert_allclose(sac.act(o, deterministic=True), sac2.act(o, deterministic=True), atol=1e-6)
 
 
+def test_layernorm_in_the_q_heads_only_where_asked():
+    norms = lambda sac: sum(isinstance(m, torch.nn.LayerNorm) for m in sac.q.modules())   # noqa: E731
+    assert norms(policy.SAC("ts-ptv")) == 0 and norms(policy.SAC("ts-ptv", q_norm=True)) == 4   # 2 hidden x 2 heads
+    rng = np.random.default_rng(5)
+    buf = policy.ReplayBuffer(50, {"image": (80, 80), "pose_hist": (32, 6), "wrench_hist": (32, 6)})
+    buf.add_episode({"obs": fake_obs(rng, 11), "act": rng.uniform(-1, 1, (10, 6)), "rew": rng.normal(size=10),
+                     "term": np.zeros(10)})
+    sac = policy.SAC("ts-ptv", q_norm=True)
+    before = [p.clone() for p in sac.q.parameters()]
+    assert np.isfinite(sac.update(buf.sample(8, rng))["q_loss"])
+    assert all(not torch.equal(a, b) for a, b in zip(before, sac.q.parameters()))    # the norms learn too
+
+
 @pytest.fixture
 def one_thread():
     """torch.set_num_threads(1) for the test, as tacrl runs: each op on the thread that calls it."""
