@@ -257,7 +257,7 @@ class Run:
             from torch.utils.tensorboard import SummaryWriter    # what was written past its checkpoint
             self.tb = SummaryWriter(os.path.join(self.dir, "tb"), purge_step=self.episode + 1 if self.episode else None)
         self.probe_update, self.laps, self.update_s = probe_update, {"env": [], "update": []}, []
-        self.t0 = self.t_lap = time.time() - elapsed
+        self.t0, self.t_lap = time.time() - elapsed, time.time()       # (a resumed run's first lap starts now)
 
     def _load(self, path):
         try:

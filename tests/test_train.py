@@ -76,6 +76,11 @@ def test_a_run_killed_and_resumed_is_the_same_run_as_one_never_stopped(tiny_run,
     assert strip(tiny_run["rows"]) == strip(uninterrupted["rows"])     # (and --track changes nothing)
 
 
+def test_a_resumed_runs_first_episode_counts_its_own_time_not_the_runs(tiny_run):
+    rows, k = tiny_run["rows"], len(tiny_run["rows_at_kill"])      # row k: the first episode after the resume
+    assert float(rows[k]["env_s"]) < float(rows[k - 1]["elapsed_s"]) and float(rows[k]["env_s"]) < 60
+
+
 def test_track_writes_what_tensorboard_reads(uninterrupted):
     from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
     ea = EventAccumulator(os.path.join(uninterrupted["dir"], "tb"), size_guidance={"scalars": 0, "images": 0})
