@@ -56,10 +56,11 @@ def parts(sac, o, a, calls, repeats):
         with torch.no_grad():
             out[f"{name}: forward of o', no gradient (the TD target)"] = ms(lambda: sac.encode(enc, o))
         out[f"{name}: forward + backward (o)"] = ms(grads(lambda: sac.encode(enc, o), params))
-        inputs = {"CNN": (enc.image, o["image"]) if enc.image is not None else None,
-                  "LSTM": (getattr(enc, "series", None), torch.cat([o["pose_hist"] / enc.pose_scale,
-                                                                     o["wrench_hist"] / enc.wrench_scale], 2))}
-        for part, (m, x) in [(k, v) for k, v in inputs.items() if v is not None and v[0] is not None]:
+        inputs = [("CNN", enc.image, o["image"])] if enc.image is not None else []
+        if hasattr(enc, "series"):                 # the LSTM reads both series side by side, as Encoder.forward
+            inputs.append(("LSTM", enc.series, torch.cat([o["pose_hist"] / enc.pose_scale,
+                                                          o["wrench_hist"] / enc.wrench_scale], 2)))
+        for part, m, x in inputs:
             ps = list(m.parameters())
             out[f"  of which the {part}"] = ms(grads(lambda: policy.in_halves(lambda d: m(d["x"]), ps, {"x": x},
                                                                                sac.helper), ps))

@@ -1,5 +1,5 @@
 """sweep.py: the report's experiments as a plan of independent, resumable runs of tacrl.py, each in a run
-directory of its own, executed as local processes (the default: at most one a core, torch threads x
+directory of its own, executed as local processes (the default: at most one a core, threads an update x
 processes <= cores) or as Ray tasks (the `ray` extra: a local Ray instance, or a cluster's address).
 A run that has finished (eval.json) is skipped, one that was stopped is resumed, so the same command
 picks a sweep up where it stopped; report.py reads whatever has finished.
