@@ -49,11 +49,13 @@ FEAT = 6                      # features per modality
 LOG_STD_MIN, LOG_STD_MAX = -5.0, 2.0
 
 
-def mlp(n_in, n_out, hidden=(256, 256), norm=False):
-    """Linear -> ReLU layers (norm: Linear -> LayerNorm -> ReLU, as RLPD's critics, Ball et al. 2023) -> Linear."""
+def mlp(n_in, n_out, hidden=(256, 256), norm=False, dropout=0.0):
+    """Linear -> ReLU layers (norm: Linear -> LayerNorm -> ReLU, as RLPD's critics, Ball et al. 2023; dropout:
+    Linear -> Dropout -> [LayerNorm ->] ReLU, as DroQ's, Hiraoka et al. 2021) -> Linear."""
     layers, d = [], n_in
     for h in hidden:
-        layers += [nn.Linear(d, h), *([nn.LayerNorm(h)] if norm else []), nn.ReLU()]
+        layers += [nn.Linear(d, h), *([nn.Dropout(dropout)] if dropout else []), *([nn.LayerNorm(h)] if norm else []),
+                   nn.ReLU()]
         d = h
     return nn.Sequential(*layers, nn.Linear(d, n_out))
 
@@ -79,7 +81,7 @@ class ImageEncoder(nn.Module):
     image reaches the feature (a 6 x 6 kernel left the bottom and right 19 rows unseen). Small on
     purpose: on 2 CPU cores its backward pass is most of an update (bench/bench_sac.py)."""
 
-    def __init__(self, img=80, norm="fixed"):
+    def __init__(self, img=80, norm="fixed", feat=FEAT):
         super().__init__()
         self.norm = norm
         self.conv = nn.Sequential(nn.Conv2d(1, 8, 4, stride=3), nn.ReLU(),
@@ -87,7 +89,7 @@ class ImageEncoder(nn.Module):
                                   nn.Conv2d(16, 32, 8, stride=4), nn.ReLU(), nn.Flatten())
         with torch.no_grad():
             n = self.conv(torch.zeros(1, 1, img, img)).shape[1]
-        self.fc = nn.Linear(n, FEAT)
+        self.fc = nn.Linear(n, feat)
 
     def forward(self, img):                  # img: (B, 80, 80) uint8
         return self.fc(self.conv(pixels(img, self.norm)))
@@ -100,7 +102,7 @@ class SpatialImageEncoder(nn.Module):
     (B, 1, 80, 80) -> (B, 8, 26, 26) -> (B, K, 12, 12) -> (B, 2K) x, y in [-1, 1] -> (B, 6). (A 24 x 24 map, the
     second convolution at stride 1, cost 1.4x the CNN's update time; at stride 2 it costs what the CNN does.)"""
 
-    def __init__(self, img=80, norm="fixed", k=16):
+    def __init__(self, img=80, norm="fixed", feat=FEAT, k=16):
         super().__init__()
         self.norm = norm
         self.conv = nn.Sequential(nn.Conv2d(1, 8, 4, stride=3), nn.ReLU(), nn.Conv2d(8, k, 3, stride=2))
@@ -109,7 +111,7 @@ class SpatialImageEncoder(nn.Module):
         ys, xs = torch.meshgrid(torch.linspace(-1, 1, h), torch.linspace(-1, 1, w), indexing="ij")
         self.register_buffer("grid", torch.stack([xs.flatten(), ys.flatten()], 1))   # (h w, 2): each cell's x, y
         self.log_temp = nn.Parameter(torch.zeros(()))
-        self.fc = nn.Linear(2 * k, FEAT)
+        self.fc = nn.Linear(2 * k, feat)
 
     def keypoints(self, img):                # img: (B, 80, 80) uint8 -> (B, K, 2), x right and y down in [-1, 1]
         h = self.conv(pixels(img, self.norm)).flatten(2)                             # (B, K, h w)
@@ -140,7 +142,7 @@ class Encoder(nn.Module):
     readings by these so that the inputs are of order 1 (the env's error range and F_max)."""
 
     def __init__(self, kind="ts-ptv", pose_scale=np.ones(6), wrench_scale=np.ones(6), img=80, norm="joint",
-                 image="cnn", image_norm="fixed"):
+                 image="cnn", image_norm="fixed", image_feat=FEAT):
         super().__init__()
         if image not in IMAGE_ENCODERS:
             raise ValueError(f"unknown image encoder {image!r} ({', '.join(IMAGE_ENCODERS)})")
@@ -148,22 +150,24 @@ class Encoder(nn.Module):
             raise ValueError(f"unknown image normalisation {image_norm!r} ({', '.join(IMAGE_NORMS)})")
         if kind not in OBS_KINDS:
             raise ValueError(f"unknown observation kind {kind!r} ({', '.join(OBS_KINDS)})")
-        self.kind, self.norm_kind, self.image_kind, self.image_norm = kind, norm, image, image_norm
+        self.kind, self.norm_kind, self.image_kind, self.image_norm, self.image_feat = kind, norm, image, image_norm, \
+            image_feat
         self.register_buffer("pose_scale", torch.as_tensor(np.asarray(pose_scale), dtype=torch.float32))
         self.register_buffer("wrench_scale", torch.as_tensor(np.asarray(wrench_scale), dtype=torch.float32))
         if kind == "pt":
             self.now = mlp(12, 2 * FEAT, (64,))
         elif kind != "v":
             self.series = SeriesEncoder()
-        self.image = IMAGE_ENCODERS[image](img, image_norm) if kind in ("ts-ptv", "v") else None
+        # image_feat: the image's feature, the paper's 6 (wider: ours, issue 50's study)
+        self.image = IMAGE_ENCODERS[image](img, image_norm, image_feat) if kind in ("ts-ptv", "v") else None
         # ts-ptk (keypoint RL): obs['keypoint'] (B, 4), the hole found in the image by a detector, in place of the CNN
         self.keypoint = mlp(4, FEAT, (32,)) if kind == "ts-ptk" else None
-        self.out_dim = {"ts-ptv": 3 * FEAT, "ts-ptk": 3 * FEAT, "v": FEAT}.get(kind, 2 * FEAT)
+        self.out_dim = {"ts-ptv": 2 * FEAT + image_feat, "ts-ptk": 3 * FEAT, "v": image_feat}.get(kind, 2 * FEAT)
         # norm 'joint': one LayerNorm over the fused vector; 'modality': one per modality's features before
         # they are joined (SERL and SAC-AE end each modality's encoder in LayerNorm + tanh), so that the CNN's
         # 6 and the LSTM's 12 features enter at the same scale
         seen = self.image is not None or self.keypoint is not None                 # the image's, or the keypoint's, 6
-        sizes = ([2 * FEAT] if kind != "v" else []) + ([FEAT] if seen else [])     # each modality as forward joins them
+        sizes = ([2 * FEAT] if kind != "v" else []) + ([self.out_dim - (2 * FEAT if kind != "v" else 0)] if seen else [])
         self.norm = nn.LayerNorm(self.out_dim) if norm == "joint" else nn.ModuleList([nn.LayerNorm(n) for n in sizes])
 
     def forward(self, obs):
@@ -224,15 +228,29 @@ class Actor(nn.Module):
 
 
 class TwinQ(nn.Module):
-    """Two Q heads, each a 2 x 256 MLP on [fusion vector, action] (norm: LayerNorm after each hidden layer)."""
+    """Two Q heads, each a 2 x 256 MLP on [fusion vector, action] (norm: LayerNorm after each hidden layer;
+    dropout: DroQ's dropout)."""
 
-    def __init__(self, n_feat, act_dim=6, norm=False):
+    def __init__(self, n_feat, act_dim=6, norm=False, dropout=0.0):
         super().__init__()
-        self.q1, self.q2 = mlp(n_feat + act_dim, 1, norm=norm), mlp(n_feat + act_dim, 1, norm=norm)
+        self.q1, self.q2 = (mlp(n_feat + act_dim, 1, norm=norm, dropout=dropout) for _ in range(2))
 
     def forward(self, z, a):
         za = torch.cat([z, a], -1)
         return self.q1(za).squeeze(-1), self.q2(za).squeeze(-1)
+
+
+class QEnsemble(nn.Module):
+    """REDQ's critics (Chen et al. 2021; ours, issue 50's study): n Q heads as TwinQ's; SAC's TD target takes the
+    smaller of two drawn at random each update, the actor their mean."""
+
+    def __init__(self, n_feat, act_dim=6, norm=False, dropout=0.0, n=10):
+        super().__init__()
+        self.heads = nn.ModuleList(mlp(n_feat + act_dim, 1, norm=norm, dropout=dropout) for _ in range(n))
+
+    def forward(self, z, a):                   # -> n tensors (B,)
+        za = torch.cat([z, a], -1)
+        return tuple(h(za).squeeze(-1) for h in self.heads)
 
 
 @torch.no_grad()
@@ -410,7 +428,8 @@ class SAC:
     def __init__(self, obs_kind="ts-ptv", pose_scale=np.ones(6), wrench_scale=np.ones(6), act_dim=6,
                  lr=3e-4, gamma=0.95, tau=0.005, init_alpha=0.1, target_entropy=None, state_dim=0, device="cpu",
                  extra_dim=0, target_encoder=True, norm="joint", own_actor_encoder=False, aux_reward=0.0,
-                 aux_state=0.0, image="cnn", image_norm="fixed", q_norm=False, threads=1):
+                 aux_state=0.0, image="cnn", image_norm="fixed", q_norm=False, threads=1, q_dropout=0.0, n_q=2,
+                 aux_wrench=0.0, image_feat=FEAT):
         self.device, self.gamma, self.tau = torch.device(device), gamma, tau
         self.helper = Helper(threads)        # threads=2: each multimodal encoder's batch as two halves, side by side
         # the paper's critics lend the actor their encoder, unless it has one of its own (as it always has with
@@ -418,9 +437,10 @@ class SAC:
         self.shared = not state_dim and not own_actor_encoder
         self.extra_dim, self.target_encoder = extra_dim, target_encoder
         enc = lambda: Encoder(obs_kind, pose_scale, wrench_scale, norm=norm, image=image,  # noqa: E731
-                              image_norm=image_norm).to(self.device)
+                              image_norm=image_norm, image_feat=image_feat).to(self.device)
         self.enc = StateEncoder(state_dim, pose_scale, wrench_scale).to(self.device) if state_dim else enc()
-        self.q = TwinQ(self.enc.out_dim + extra_dim, act_dim, norm=q_norm).to(self.device)
+        self.q = (TwinQ(self.enc.out_dim + extra_dim, act_dim, norm=q_norm, dropout=q_dropout) if n_q == 2 else
+                  QEnsemble(self.enc.out_dim + extra_dim, act_dim, norm=q_norm, dropout=q_dropout, n=n_q)).to(self.device)
         self.enc_targ, self.q_targ = copy.deepcopy(self.enc), copy.deepcopy(self.q)
         for p in list(self.enc_targ.parameters()) + list(self.q_targ.parameters()):
             p.requires_grad_(False)
@@ -444,7 +464,11 @@ class SAC:
         # al. (2017) predict depth; the critics read the paper's observation alone
         self.aux_state = aux_state
         self.s_head = nn.Linear(self.enc.out_dim, 4).to(self.device) if aux_state else None
-        heads = [h for h in (self.r_head, self.s_head) if h is not None]
+        # aux_wrench w: a head on the critics' input and the action predicts the next wrench reading, which the agent
+        # observes (a forward model of touch, ours, issue 50's study: no label that training alone knows)
+        self.aux_wrench = aux_wrench
+        self.w_head = mlp(self.enc.out_dim + extra_dim + act_dim, 6, (256,)).to(self.device) if aux_wrench else None
+        heads = [h for h in (self.r_head, self.s_head, self.w_head) if h is not None]
         self.q_opt = torch.optim.Adam(self._online_params + [p for h in heads for p in h.parameters()], lr=lr, fused=True)
         actor_params = list(self.actor.parameters()) + ([] if self.shared else list(self.actor_enc.parameters()))
         self.pi_opt = torch.optim.Adam(actor_params, lr=lr, fused=True)
@@ -474,16 +498,20 @@ class SAC:
             # without gradient, as DrQ-v2 does (Yarats et al. 2021), so that a' follows the actor's encoder of now
             z2 = self.encode(self.enc_targ if self.target_encoder else self.enc, o2)
             a2, logp2 = self.actor(z2 if self.shared else self.encode(self.actor_enc, o2))
-            q1_t, q2_t = self.q_targ(self.critic_input(z2, o2), a2)
-            y = td_target(r, term, torch.min(q1_t, q2_t), logp2, alpha, disc)
+            q_t = self.q_targ(self.critic_input(z2, o2), a2)
+            if len(q_t) > 2:                                  # REDQ: the smaller of two heads drawn at random
+                q_t = [q_t[i] for i in torch.randperm(len(q_t))[:2].tolist()]
+            y = td_target(r, term, torch.min(*q_t), logp2, alpha, disc)
         z = self.encode(self.enc, o)
-        q1, q2 = self.q(self.critic_input(z, o), a)
-        q_loss = F.mse_loss(q1, y) + F.mse_loss(q2, y)
+        q_loss = sum(F.mse_loss(q, y) for q in self.q(self.critic_input(z, o), a))
         aux = 0.0
         if self.aux_reward:
             aux = self.aux_reward * F.mse_loss(self.r_head(torch.cat([self.critic_input(z, o), a], 1)).squeeze(-1), r)
         if self.aux_state:
             aux = aux + self.aux_state * F.mse_loss(self.s_head(z), o["state"][:, :4])
+        if self.aux_wrench:
+            w_next = o2["wrench_hist"][:, -1] / self.enc.wrench_scale
+            aux = aux + self.aux_wrench * F.mse_loss(self.w_head(torch.cat([self.critic_input(z, o), a], 1)), w_next)
         self.q_opt.zero_grad(set_to_none=True)
         (q_loss + aux).backward()
         self.q_opt.step()
@@ -493,10 +521,11 @@ class SAC:
         a_pi, logp = self.actor(z_pi)
         for p in self.q.parameters():
             p.requires_grad_(False)
-        q1_pi, q2_pi = self.q(self.critic_input(z.detach(), o), a_pi)
+        q_pi = self.q(self.critic_input(z.detach(), o), a_pi)
         for p in self.q.parameters():
             p.requires_grad_(True)
-        pi_loss = (alpha * logp - torch.min(q1_pi, q2_pi)).mean()
+        q_pi = torch.min(*q_pi) if len(q_pi) == 2 else torch.stack(q_pi).mean(0)     # REDQ's actor: the heads' mean
+        pi_loss = (alpha * logp - q_pi).mean()
         self.pi_opt.zero_grad(set_to_none=True)
         pi_loss.backward()
         self.pi_opt.step()
@@ -512,6 +541,18 @@ class SAC:
                 p_targ.lerp_(p, self.tau)
         return {"q_loss": q_loss.item(), "pi_loss": pi_loss.item(), "alpha": alpha.item(),
                 "entropy": -logp.mean().item()}
+
+    def reset_heads(self):
+        """Nikishin et al. (2022)'s resets against primacy bias, as they reset DrQ (ours, issue 50's study): the
+        actor's and the critics' MLP heads (and their targets) drawn anew and their Adam moments forgotten; the
+        encoder, the temperature and the replay keep what they hold."""
+        for m in list(self.q.modules()) + list(self.actor.modules()):
+            if isinstance(m, (nn.Linear, nn.LayerNorm)):
+                m.reset_parameters()
+        self.q_targ.load_state_dict(self.q.state_dict())
+        for opt, params in ((self.q_opt, self.q.parameters()), (self.pi_opt, self.actor.parameters())):
+            for p in params:
+                opt.state.pop(p, None)
 
     def encode(self, enc, o):
         """enc(o); a multimodal encoder on the CPU as the batch's two halves (in_halves): its LSTM and CNN, most of
@@ -535,6 +576,8 @@ class SAC:
             m["r_head"] = self.r_head
         if self.s_head is not None:
             m["s_head"] = self.s_head
+        if self.w_head is not None:
+            m["w_head"] = self.w_head
         return m
 
     def state_dict(self):
@@ -575,6 +618,7 @@ def save_policy(path, sac, meta):
     plain values that evaluation must know of training ('obs' among them: the encoder's kind)."""
     save_atomic({"format": POLICY_FORMAT, **meta, "norm": sac.actor_enc.norm_kind,
                  "image_encoder": sac.actor_enc.image_kind, "image_norm": sac.actor_enc.image_norm,
+                 "image_feat": sac.actor_enc.image_feat,
                  "encoder": sac.actor_enc.state_dict(),
                  "actor": sac.actor.state_dict()}, path)
 
@@ -588,9 +632,9 @@ class TrainedPolicy:
             raise ValueError("not a tacrl policy file")
         self.meta = {k: v for k, v in d.items() if k not in ("format", "encoder", "actor")}
         self.device = device
-        # (files before 'norm', 'image_encoder' and 'image_norm': joint, cnn, fixed)
+        # (files before 'norm', 'image_encoder', 'image_norm' and 'image_feat': joint, cnn, fixed, 6)
         self.encoder = Encoder(d["obs"], norm=d.get("norm", "joint"), image=d.get("image_encoder", "cnn"),
-                               image_norm=d.get("image_norm", "fixed")).to(device).eval()
+                               image_norm=d.get("image_norm", "fixed"), image_feat=d.get("image_feat", FEAT)).to(device).eval()
         self.encoder.load_state_dict(d["encoder"])
         self.actor = Actor(self.encoder.out_dim).to(device).eval()
         self.actor.load_state_dict(d["actor"])

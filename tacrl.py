@@ -99,6 +99,16 @@ class Config:
                                           "(Levine et al. 2016; ours)", tuple(policy.IMAGE_ENCODERS))
     q_norm: bool = train_opt(False, "LayerNorm after each hidden layer of the twin Q heads (RLPD, Ball et al. 2023; ours, "
                                     "issue 50's study)")
+    q_dropout: float = train_opt(0.0, "dropout after each hidden layer of the Q heads (DroQ, Hiraoka et al. 2021, with "
+                                      "--q-norm; ours, issue 50's study)", bounds=(0, 1))
+    q_heads: int = train_opt(2, "Q heads: 2, twin Q; more, REDQ's ensemble, the target's min over 2 drawn at random "
+                                "(Chen et al. 2021; ours, issue 50's study)", bounds=(2, 20))
+    reset: int = train_opt(0, "every this many episodes after the warm-up, the actor's and critics' MLP heads drawn anew "
+                              "(Nikishin et al. 2022; ours, issue 50's study; 0: never)", bounds=(0, None))
+    aux_wrench: float = train_opt(0.0, "weight of a loss on the critics' encoder predicting the next wrench reading "
+                                       "(ours, issue 50's study; 0: none)", bounds=(0, None))
+    image_feat: int = train_opt(policy.FEAT, "the image's feature size (the paper's 6; wider: ours, issue 50's study)",
+                                bounds=(1, 64))
     image_norm: str = train_opt("fixed", "the image's grey levels as the encoder reads them: x / 255 - 0.5 (fixed), or "
                                          "each image standardised by its own mean and spread (image; ours)",
                                 policy.IMAGE_NORMS)
@@ -167,6 +177,8 @@ def train(cfg, log=lambda msg: print(msg, flush=True)):
             # line 10, update the policy with SAC
             n = cfg.updates if ep >= cfg.warmup else 0
             losses = [sac.update(buf.sample(cfg.batch, rng, cfg.augment, cfg.shift)) for _ in range(n)]
+            if cfg.reset and ep >= cfg.warmup and (ep + 1 - cfg.warmup) % cfg.reset == 0:
+                sac.reset_heads()
             run.lap("update")
             curr.update(bool(episode["term"][-1]))                      # line 11: generate the curriculum, Eq. 16
             learned = stop.learned(env.e_r >= curr.final - 1e-9, lambda: validate(cfg, sac, curr), log, ep)
@@ -243,7 +255,8 @@ def make_sac(cfg, device=None):
                       extra_dim=EXTRA_DIM if cfg.critic_extra else 0, target_encoder=cfg.next_encoder == "target",
                       norm=cfg.fusion_norm, own_actor_encoder=cfg.actor_encoder == "own", aux_reward=cfg.aux_reward,
                       aux_state=cfg.aux_offset, image=cfg.image_encoder, image_norm=cfg.image_norm, q_norm=cfg.q_norm,
-                      threads=cfg.threads or min(2, os.cpu_count() or 1))
+                      threads=cfg.threads or min(2, os.cpu_count() or 1), q_dropout=cfg.q_dropout, n_q=cfg.q_heads,
+                      aux_wrench=cfg.aux_wrench, image_feat=cfg.image_feat)
 
 
 def obs_shapes(cfg):
@@ -395,9 +408,9 @@ def check(cfg):
             (cfg.obs == "ts-ptk" and cfg.task != "peg", "--obs ts-ptk (keypoint RL) finds the peg board's hole; the "
                                                         "gear's shaft is no keypoint it finds (Table 1 is the peg's)"),
             (cfg.critic != "multimodal" and (cfg.critic_extra, cfg.next_encoder, cfg.actor_encoder, cfg.aux_reward,
-                                             cfg.aux_offset) != (False, "target", "shared", 0.0, 0.0),
-             "--critic-extra, --next-encoder, --actor-encoder, --aux-reward and --aux-offset change the paper's critics: "
-             "they need --critic multimodal"),
+                                             cfg.aux_offset, cfg.aux_wrench) != (False, "target", "shared", 0.0, 0.0, 0.0),
+             "--critic-extra, --next-encoder, --actor-encoder, --aux-reward, --aux-offset and --aux-wrench change the "
+             "paper's critics: they need --critic multimodal"),
             (cfg.buffer < max(cfg.batch, sim.MAX_STEPS), f"--buffer {cfg.buffer} must hold an episode ({sim.MAX_STEPS} "
                                                          f"transitions) and a batch (--batch {cfg.batch})"),
             (cfg.video and os.path.splitext(cfg.video)[1].lower() not in evaluate.VIDEO_CODECS,
@@ -441,6 +454,7 @@ def check(cfg):
 def default_run_dir(cfg):
     """runs/<task>-[vanilla-]<obs>-<curriculum>[-e<E_r mm>][-roi-<roi>][-ctx-<context>][-<critic>][-aug<s>][-shift<px>][-rand-<families>][-extra]
     [-next-online][-norm-modality][-own-actor-enc][-n<steps>][-auxr<w>][-auxo<w>][-img-<encoder>][-imgnorm-<norm>][-qnorm]
+    [-qdrop<p>][-redq<n>][-reset<episodes>][-auxw<w>][-imgf<n>]
     [-<tag><value> of RUN_NAME_TAGS]-s<seed>:
     the flags of the baselines, ablations and options are in its name, so that no run overwrites another's directory."""
     name = f"{cfg.task}-{'vanilla-' if cfg.vanilla else ''}{cfg.obs}-{cfg.curriculum}"
@@ -461,6 +475,11 @@ def default_run_dir(cfg):
     name += f"-img-{cfg.image_encoder}" if cfg.image_encoder != Config.image_encoder else ""
     name += f"-imgnorm-{cfg.image_norm}" if cfg.image_norm != Config.image_norm else ""
     name += "-qnorm" if cfg.q_norm else ""
+    name += f"-qdrop{cfg.q_dropout:g}" if cfg.q_dropout else ""
+    name += f"-redq{cfg.q_heads}" if cfg.q_heads != Config.q_heads else ""
+    name += f"-reset{cfg.reset}" if cfg.reset else ""
+    name += f"-auxw{cfg.aux_wrench:g}" if cfg.aux_wrench else ""
+    name += f"-imgf{cfg.image_feat}" if cfg.image_feat != Config.image_feat else ""
     for field, tag in RUN_NAME_TAGS:                    # the scene and SAC's numbers, where not the defaults
         value = getattr(cfg, field)
         name += f"-{tag}{value:g}" if value != getattr(Config, field) else ""

@@ -152,6 +152,56 @@ def test_layernorm_in_the_q_heads_only_where_asked():
     assert all(not torch.equal(a, b) for a, b in zip(before, sac.q.parameters()))    # the norms learn too
 
 
+def small_buffer(rng):
+    buf = policy.ReplayBuffer(50, {"image": (80, 80), "pose_hist": (32, 6), "wrench_hist": (32, 6)})
+    buf.add_episode({"obs": fake_obs(rng, 11), "act": rng.uniform(-1, 1, (10, 6)), "rew": rng.normal(size=10),
+                     "term": np.zeros(10)})
+    return buf
+
+
+def test_dropout_and_an_ensemble_of_q_heads_only_where_asked():
+    count = lambda sac, kind: sum(isinstance(m, kind) for m in sac.q.modules())   # noqa: E731
+    assert count(policy.SAC("ts-ptv"), torch.nn.Dropout) == 0
+    assert count(policy.SAC("ts-ptv", q_dropout=0.01, q_norm=True), torch.nn.Dropout) == 4
+    rng = np.random.default_rng(5)
+    buf = small_buffer(rng)
+    sac = policy.SAC("ts-ptv", n_q=5)
+    assert len(sac.q(torch.zeros(3, 18), torch.zeros(3, 6))) == 5
+    before = [p.clone() for p in sac.q.parameters()]
+    assert np.isfinite(sac.update(buf.sample(8, rng))["q_loss"])
+    assert all(not torch.equal(a, b) for a, b in zip(before, sac.q.parameters()))    # every head learns
+
+
+def test_a_reset_redraws_the_heads_and_keeps_the_encoder():
+    rng = np.random.default_rng(6)
+    buf = small_buffer(rng)
+    sac = policy.SAC("ts-ptv", q_norm=True)
+    for _ in range(3):
+        sac.update(buf.sample(8, rng))
+    enc, q, actor = (copy.deepcopy(m.state_dict()) for m in (sac.enc, sac.q, sac.actor))
+    sac.reset_heads()
+    assert all(torch.equal(v, sac.enc.state_dict()[k]) for k, v in enc.items())
+    for old, m in ((q, sac.q), (actor, sac.actor)):
+        assert all(not torch.equal(v, m.state_dict()[k]) for k, v in old.items() if v.dtype.is_floating_point and
+                   v.numel() > 1 and v.std() > 0)      # drawn anew (LayerNorm's ones and zeros stay)
+    assert all(torch.equal(v, sac.q_targ.state_dict()[k]) for k, v in sac.q.state_dict().items())
+    assert not any(p in sac.q_opt.state for p in sac.q.parameters())
+    assert np.isfinite(sac.update(buf.sample(8, rng))["q_loss"])
+
+
+def test_the_next_wrench_head_trains_the_critics_encoder():
+    rng = np.random.default_rng(7)
+    b = small_buffer(rng).sample(8, rng)
+    sacs = []
+    for w in (0.0, 1.0):
+        torch.manual_seed(0)
+        sacs.append(policy.SAC("ts-ptv", aux_wrench=w))
+        torch.manual_seed(1)
+        sacs[-1].update(b)
+    assert sacs[0].w_head is None and sacs[1].w_head is not None
+    assert not all(torch.equal(p, q) for p, q in zip(sacs[0].enc.parameters(), sacs[1].enc.parameters()))
+
+
 @pytest.fixture
 def one_thread():
     """torch.set_num_threads(1) for the test, as tacrl runs: each op on the thread that calls it."""
@@ -295,10 +345,13 @@ def test_the_papers_critics_with_extras_and_the_online_next_encoder_update(norm)
     assert sac.act(fake_obs(rng)).shape == (6,)            # the actor reads no 'extra'
 
 
-@pytest.mark.parametrize("image,image_norm", [("cnn", "fixed"), ("cnn", "image"), ("spatial", "fixed")])
-def test_a_saved_policy_keeps_its_encoders_layout(tmp_path, image, image_norm):
+@pytest.mark.parametrize("image,image_norm,feat", [("cnn", "fixed", 6), ("cnn", "image", 6), ("spatial", "fixed", 6),
+                                                   ("cnn", "fixed", 16)])
+def test_a_saved_policy_keeps_its_encoders_layout(tmp_path, image, image_norm, feat):
     torch.manual_seed(0)
-    sac = policy.SAC("ts-ptv", norm="modality", own_actor_encoder=True, image=image, image_norm=image_norm)
+    sac = policy.SAC("ts-ptv", norm="modality", own_actor_encoder=True, image=image, image_norm=image_norm,
+                     image_feat=feat)
+    assert sac.actor_enc.out_dim == 12 + feat
     policy.save_policy(str(tmp_path / "p.pt"), sac, {"task": "peg", "obs": "ts-ptv"})
     pi = policy.TrainedPolicy(policy.load_file(str(tmp_path / "p.pt")))
     obs = fake_obs(np.random.default_rng(0))
