@@ -194,11 +194,11 @@ def train(cfg, log=lambda msg: print(msg, flush=True)):
     return finish(cfg, sac, curr, env.e_r_max, run.seconds(), log)
 
 
-def rollout(env, act):
+def rollout(env, act, seed=None):
     """Algorithm 1, line 9: one episode with the residual act(obs) -> a, as the replay buffer takes it: T + 1
     observations, each with the privileged critics' 'state' (which the actor never reads), T actions, rewards,
-    ends; and its return."""
-    obs, info = env.reset()
+    ends; and its return. seed: the episode's (None: the env's generator draws it, as in training)."""
+    obs, info = env.reset(seed=seed)
     traj = {k: [v] for k, v in {**obs, "state": critic_state(info), "extra": critic_extra(info)}.items()}
     acts, rews, terms, done = [], [], [], False
     while not done:

@@ -387,3 +387,31 @@ def test_a_run_trained_in_the_families_scenes_is_tested_on_their_held_out_seeds_
     text = (tmp_path / "docs" / "CONTEXTS.md").read_text()
     assert asked == ["light:test"] and "randomize light" in text and "| loc-" not in text
     assert "appears in the families alone" in text
+
+
+def test_critics_diagnostics_of_a_run_and_its_compare_row(tiny_run, tmp_path, monkeypatch):
+    import critics
+    monkeypatch.setattr(sim, "MAX_STEPS", SHORT)
+    run = tmp_path / "runs" / "run"
+    shutil.copytree(tiny_run["dir"], run)
+    assert tacrl.command("critics", lambda: critics.main([str(run), "--episodes", "1"])) == 2
+    assert tacrl.command("critics", lambda: critics.main([str(run), "--episodes", "2"])) == 0
+    c = json.loads((run / "critics.json").read_text())
+    assert set(c["probe"]["r2"]) == set(c["probe"]["r2_untrained"]) == {"x", "y", "z", "yaw"}
+    assert c["probe"]["features"] == "the actor's encoder"          # tiny_run's critics are privileged
+    docs = tmp_path / "docs"
+    assert tacrl.command("report", lambda: report.main([str(run), "--compare", "cmp", "--out", str(docs)])) == 0
+    row = [ln for ln in (docs / "cmp.md").read_text().splitlines() if ln.startswith("|")][2]
+    assert f"{c['probe']['r2']['x']:.2f} / {c['probe']['r2']['y']:.2f}" in row
+
+
+def test_soft_returns_and_the_probes_regression():
+    import critics
+    r, logp = np.array([1.0, 2.0, 3.0]), np.array([-1.0, -2.0, 0.0])     # logp of the next step's action
+    g = critics.soft_returns(r, logp, gamma=0.5, alpha=0.1)
+    assert g[2] == 3.0 and g[1] == 2.0 + 0.5 * (3.0 + 0.1 * 2.0) and g[0] == 1.0 + 0.5 * (g[1] + 0.1 * 1.0)
+    rng = np.random.default_rng(0)
+    x = rng.normal(size=(400, 5))
+    y = np.stack([x @ rng.normal(size=5), rng.normal(size=400)], 1)      # one target linear in x, one noise
+    r2 = critics.ridge_r2(x[:200], y[:200], x[200:], y[200:], lam=1e-4)
+    assert r2[0] > 0.99 and r2[1] < 0.05

@@ -85,7 +85,7 @@ RESULTS_DIR = "results"       # the archived runs the report is built from; the 
 # what each report reads by default: an experiment's runs lie in results/<experiment of tools/sweep.py>/
 REPORT_RUNS = ",".join(f"{RESULTS_DIR}/{e}/*" for e in ("table1", "contexts", *ABLATIONS))
 CONTEXT_RUNS = f"{RESULTS_DIR}/contexts/*,{RESULTS_DIR}/robust/*"
-ARCHIVED = ("config.json", "metrics.csv", "policy.pt", "curves.png", "train.log")    # and eval*.json
+ARCHIVED = ("config.json", "metrics.csv", "policy.pt", "curves.png", "train.log", "critics.json")    # and eval*.json
 
 
 def read_json(path):
@@ -771,6 +771,18 @@ def write_contexts(patterns, out_dir, levels=LEVELS, episodes=20, jobs=1, log=pr
     return 0
 
 
+def critics_cells(run_dir):
+    """tools/critics.py's diagnostics of a run as two table cells ('-' where not made)."""
+    path = os.path.join(run_dir, "critics.json")
+    if not os.path.exists(path):
+        return "- | -"
+    c = read_json(path)
+    q = c["q_vs_mc"]
+    r2, r0 = c["probe"]["r2"], c["probe"]["r2_untrained"]
+    return (f"{q['bias']:+.1f} ({q['corr']:.2f})" if q else "-") + \
+        f" | {r2['x']:.2f} / {r2['y']:.2f} ({r0['x']:.2f} / {r0['y']:.2f})"
+
+
 def write_compare(patterns, out_dir, name, log=print):
     """A comparison of learning settings (docs/CRITICS.md's runs): every run, finished or not, one row each
     (settings, seed, episodes, where the curriculum stood and when it first reached the final range, the
@@ -782,9 +794,14 @@ def write_compare(patterns, out_dir, name, log=print):
     os.makedirs(out_dir, exist_ok=True)
     md = [f"Made by `python tools/report.py \"{patterns}\" --compare {name}` (world {world}). E_r: where the "
           "curriculum stood at the last episode, the most it reached, and the first episode at the final range; "
-          "SR on the held-out evaluation seeds (20 episodes a level); a run without an evaluation did not finish.", "",
+          "SR on the held-out evaluation seeds (20 episodes a level); a run without an evaluation did not finish. "
+          "Q - MC and the probe: `tools/critics.py`'s diagnostics on held-out episodes at the final range (its "
+          "docstring says how; -: not made, Q's needs the run's checkpoint): Q's mean bias against the soft "
+          "Monte-Carlo return and their correlation; the R^2 with which a linear probe of the critics' features "
+          "(privileged runs: the actor's) predicts x and y of X - X_g, and in brackets the same encoder's untrained.", "",
           "| settings | seed | episodes | E_r last / max (mm) | first at final | eval SR " +
-          " / ".join(f"{mm:g}" for mm in LEVELS) + " mm | minutes |", "|---" * 7 + "|"]
+          " / ".join(f"{mm:g}" for mm in LEVELS) + " mm | minutes | Q - MC (corr) | probe R^2 x / y |",
+          "|---" * 9 + "|"]
     groups = {}
     setting = lambda cfg: f"{cfg['task']}, " + method_of(cfg) + (  # noqa: E731  (a task's runs never share a row)
         " (privileged critics)" if cfg["critic"] == "privileged" else "")
@@ -795,7 +812,8 @@ def write_compare(patterns, out_dir, name, log=print):
         sr = " / ".join(f"{x['success_rate']:.2f}" for x in ev["rows"]) if ev else "unfinished"
         minutes = ev["train_minutes"] if ev else m["elapsed_s"][-1] / 60
         md.append(f"| {setting(cfg)} | {cfg['seed']} | {len(m['episode'])} | {m['e_r_mm'][-1]:.1f} / "
-                  f"{m['e_r_mm'].max():.1f} | {int(m['episode'][at_final[0]]) if len(at_final) else '-'} | {sr} | {minutes:.1f} |")
+                  f"{m['e_r_mm'].max():.1f} | {int(m['episode'][at_final[0]]) if len(at_final) else '-'} | {sr} | "
+                  f"{minutes:.1f} | {critics_cells(r['dir'])} |")
         groups.setdefault(setting(cfg), []).append(r)
     figures.plot_groups(groups, ("e_r_mm", "sr15"), os.path.join(out_dir, f"{name}.png"), f"{name}: curves by setting")
     md += ["", f"![{name}]({name}.png)", "", "*Curves by setting: mean over seeds (band: 95 % bootstrap over seeds).*"]

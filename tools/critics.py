@@ -1,0 +1,140 @@
+"""critics.py: what a run's critics learned (issue 50), written to <run dir>/critics.json, which the archive
+keeps and `report.py --compare` shows:
+
+    python tools/critics.py "runs/critics/*"        # each run with a policy.pt; Q needs its ckpt.pt too
+
+Both diagnostics use held-out episodes at the run's final error range (seeds apart from training's,
+validation's and evaluation's), the policy acting as it trained, its actions drawn from the Gaussian:
+- Q against Monte-Carlo returns: each transition's Q(o, a) (the smaller twin, or the ensemble's mean: what
+  the actor maximises) against the soft return that follows it, r_t + sum_k gamma^k (r_t+k - alpha log
+  pi(a_t+k | o_t+k)), which Q estimates. Only transitions whose return is known: those of an episode that
+  ended in success, and those of a timed-out one at least TAIL steps before the cut (gamma^TAIL of the
+  unknown rest left out). Needs the critics, which only ckpt.pt keeps (a run dir, not the archive).
+- A linear probe: ridge regression from the features the critics read (the fusion vector of the encoder they
+  share with the actor) to X - X_g, fitted on the even episodes and scored (R^2) on the odd ones. A probe,
+  never a loss: nothing is trained. Privileged critics read X - X_g itself; their row probes the actor's
+  encoder instead, for comparison.
+"""
+import copy
+import json
+import os
+import signal
+import sys
+
+if __name__ == "__main__":     # Ctrl-C while torch and pybullet load: one line and exit 130
+    signal.signal(signal.SIGINT, lambda *_: (sys.stderr.write("\ncritics: interrupted\n"), os._exit(130)))
+
+import numpy as np  # noqa: E402
+import torch  # noqa: E402
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))   # the core modules, one folder up
+import evaluate  # noqa: E402
+import report  # noqa: E402
+import tacrl  # noqa: E402
+from tacrl import ArgError  # noqa: E402
+
+PROBE_SEED = 3000            # episode seeds from evaluate.episode_seed(PROBE_SEED + the run's seed, k)
+TAIL = 60                    # steps before a time-out a transition must be: 0.95^60 = 0.05 of the return unknown
+PROBE_STEPS = 30             # the probe's steps of each episode (6 s): its approach, where the image must say where the
+                             # hole is, each episode's count the same (a failed one would weigh 120 steps, a success 25)
+OFFSET = ("x", "y", "z", "yaw")     # X - X_g as critic_state scales it: x, y over 5 mm, z over 25 mm, yaw over 0.025 rad
+
+
+def soft_returns(r, logp_next, gamma, alpha):
+    """(T,) rewards and log pi of the next step's action (T,; the last unused) -> (T,) soft returns G_t = r_t +
+    gamma (G_t+1 - alpha logp_t+1), nothing after the last step (exact after a success; a time-out's tail is
+    left out by the caller's TAIL)."""
+    g, out = 0.0, np.zeros(len(r))
+    for t in reversed(range(len(r))):
+        g = r[t] + (gamma * (g - alpha * logp_next[t]) if t < len(r) - 1 else 0.0)
+        out[t] = g
+    return out
+
+
+def ridge_r2(x_fit, y_fit, x_test, y_test, lam=0.1):
+    """R^2 per target column of a ridge regression (standardised features, a bias) fitted on one set, scored on the
+    other."""
+    mu, sd = x_fit.mean(0), x_fit.std(0) + 1e-8
+    a = (x_fit - mu) / sd
+    w = np.linalg.solve(a.T @ a + lam * len(a) * np.eye(a.shape[1]), a.T @ (y_fit - y_fit.mean(0)))
+    pred = (x_test - mu) / sd @ w + y_fit.mean(0)                  # (the bias, the fit's mean, is not shrunk)
+    return 1 - ((pred - y_test) ** 2).sum(0) / ((y_test - y_test.mean(0)) ** 2).sum(0)
+
+
+def diagnose(run_dir, episodes=40, log=print):
+    """critics.json's contents for one run dir."""
+    cfg = tacrl.read_config(run_dir)
+    pi = report.load_policy(report.load_run(run_dir))
+    torch.manual_seed(cfg.seed)                       # the run's networks as its training drew them, before it
+    sac = tacrl.make_sac(cfg, device="cpu")
+    enc0 = copy.deepcopy(sac.actor_enc)              # the probe's reference: the same encoder untrained
+    ckpt = os.path.join(run_dir, "ckpt.pt")
+    has_q = os.path.exists(ckpt)
+    if has_q:
+        sac.load_state_dict(torch.load(ckpt, map_location="cpu", weights_only=False)["sac"])
+        sac.q.eval()                                  # (DroQ's dropout off: Q as it is, not one draw of it)
+    else:                                             # the actor and its encoder alone, as policy.pt keeps them
+        sac.actor_enc.load_state_dict(pi.encoder.state_dict())
+        sac.actor.load_state_dict(pi.actor.state_dict())
+    torch.manual_seed(PROBE_SEED + cfg.seed)
+    logps = []
+
+    def act(obs):                                     # as in training: drawn from the Gaussian, with its log pi
+        with torch.no_grad():
+            z = sac.actor_enc({k: torch.as_tensor(v[None]) for k, v in obs.items()})
+            a, logp = sac.actor(z)
+        logps.append(logp.item())
+        return a[0].numpy()
+    q_mc, feats, offsets = [], [], []
+    with evaluate.eval_env(cfg.task, pi, cfg.context, cfg.roi, cfg.clearance_mm, e_r_mm=cfg.error_mm) as env:
+        for k in range(episodes):
+            logps.clear()
+            ep = tacrl.rollout(env, act, seed=evaluate.episode_seed(PROBE_SEED + cfg.seed, k))
+            T, term = len(ep["act"]), bool(ep["term"][-1])
+            o = {key: torch.as_tensor(v[:T]) for key, v in ep["obs"].items()}
+            with torch.no_grad():
+                feats.append((sac.actor_enc(o).numpy()[:PROBE_STEPS], enc0(o).numpy()[:PROBE_STEPS]))
+                offsets.append(ep["obs"]["state"][:T, :4][:PROBE_STEPS])
+                if has_q:
+                    qs = sac.q(sac.critic_input(sac.enc(o), o), torch.as_tensor(ep["act"]))
+                    q = (torch.min(*qs) if len(qs) == 2 else torch.stack(qs).mean(0)).numpy()
+                    g = soft_returns(ep["rew"], np.append(logps[1:], 0.0), cfg.gamma, sac.log_alpha.exp().item())
+                    known = np.arange(T) < (T if term else T - TAIL)
+                    q_mc += list(zip(q[known], g[known]))
+            log(f"  {os.path.basename(run_dir)}: episode {k + 1}/{episodes} success {int(term)} steps {T}")
+    half = lambda xs, i: np.concatenate(xs[i::2])     # noqa: E731  (even episodes fit, odd ones score)
+    r2 = {name: ridge_r2(half(f, 0), half(offsets, 0), half(f, 1), half(offsets, 1))
+          for name, f in (("r2", [x for x, _ in feats]), ("r2_untrained", [x0 for _, x0 in feats]))}
+    out = {"episodes": episodes, "error_mm": cfg.error_mm, "seed": PROBE_SEED + cfg.seed,
+           "probe": {"features": "the actor's encoder" if cfg.critic == "privileged" else "the critics' encoder",
+                     **{k: dict(zip(OFFSET, np.round(v, 3).tolist())) for k, v in r2.items()}}, "q_vs_mc": None}
+    if q_mc:
+        q, g = np.array(q_mc).T
+        out["q_vs_mc"] = {"transitions": len(q), "q_mean": round(float(q.mean()), 2), "mc_mean": round(float(g.mean()), 2),
+                          "bias": round(float((q - g).mean()), 2), "rmse": round(float(np.sqrt(((q - g) ** 2).mean())), 2),
+                          "corr": round(float(np.corrcoef(q, g)[0, 1]), 3)}
+    return out
+
+
+def main(argv=None):
+    ap = tacrl.Parser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("runs", help="comma-separated glob patterns of run directories (with policy.pt)")
+    ap.add_argument("--episodes", type=int, default=40, help="held-out episodes a run (default: 40)")
+    a = ap.parse_args(argv)
+    if a.episodes < 2:
+        raise ArgError(f"--episodes must be at least 2 (the probe fits on half, scores on the other), not {a.episodes}")
+    dirs = [d for d in report.match_runs(a.runs) if os.path.exists(os.path.join(d, "policy.pt"))]
+    if not dirs:
+        raise ArgError(f"{a.runs!r}: no run with a policy.pt")
+    tacrl.use_cpu(tacrl.Config(device="cpu"))
+    for d in dirs:
+        out = diagnose(d, a.episodes, log=lambda *_: None)
+        tacrl.check_dir_writable(d, "the run dir")
+        with open(os.path.join(d, "critics.json"), "w") as f:
+            json.dump(out, f, indent=2)
+        print(f"{d}: {json.dumps(out['q_vs_mc'])}; probe R^2 {out['probe']['r2']} (untrained: "
+              f"{out['probe']['r2_untrained']})", flush=True)
+
+
+if __name__ == "__main__":
+    sys.exit(tacrl.command("critics", main))
