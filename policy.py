@@ -299,10 +299,11 @@ class ReplayBuffer:
         self.i = (self.i + T) % self.capacity
         self.n = min(self.n + T, self.capacity)
 
-    def sample(self, batch, rng, jitter_s=0.0, shift=0):
+    def sample(self, batch, rng, jitter_s=0.0, shift=0, copies=1):
         """A batch of transitions (o, a, r, o', terminated); with jitter_s, their images jittered (--augment);
-        with shift, randomly shifted by up to that many pixels (--shift)."""
-        idx = rng.integers(0, self.n, batch)
+        with shift, randomly shifted by up to that many pixels (--shift). copies: the batch `copies` times over,
+        one after the other, each image augmented anew (DrQ's K = M, SAC(copies=...) averages them)."""
+        idx = np.tile(rng.integers(0, self.n, batch), copies)
         o, o2 = ({k: v[idx] for k, v in d.items()} for d in (self.obs, self.next_obs))
         if jitter_s and "image" in o:           # o and o' jittered independently, as DrQ does
             o["image"], o2["image"] = jitter(o["image"], rng, jitter_s), jitter(o2["image"], rng, jitter_s)
@@ -429,8 +430,12 @@ class SAC:
                  lr=3e-4, gamma=0.95, tau=0.005, init_alpha=0.1, target_entropy=None, state_dim=0, device="cpu",
                  extra_dim=0, target_encoder=True, norm="joint", own_actor_encoder=False, aux_reward=0.0,
                  aux_state=0.0, image="cnn", image_norm="fixed", q_norm=False, threads=1, q_dropout=0.0, n_q=2,
-                 aux_wrench=0.0, image_feat=FEAT):
+                 aux_wrench=0.0, image_feat=FEAT, copies=1):
         self.device, self.gamma, self.tau = torch.device(device), gamma, tau
+        # copies K: a batch holds K augmented copies of each transition (ReplayBuffer.sample); the TD target is their
+        # mean, the critics' loss is over all K and the actor reads the first: DrQ's K = M (Kostrikov et al. 2020;
+        # ours, issue 50's study)
+        self.copies = copies
         self.helper = Helper(threads)        # threads=2: each multimodal encoder's batch as two halves, side by side
         # the paper's critics lend the actor their encoder, unless it has one of its own (as it always has with
         # privileged critics), trained through the actor loss
@@ -502,6 +507,8 @@ class SAC:
             if len(q_t) > 2:                                  # REDQ: the smaller of two heads drawn at random
                 q_t = [q_t[i] for i in torch.randperm(len(q_t))[:2].tolist()]
             y = td_target(r, term, torch.min(*q_t), logp2, alpha, disc)
+            if self.copies > 1:                               # DrQ: the target averaged over the copies of o'
+                y = y.view(self.copies, -1).mean(0).repeat(self.copies)
         z = self.encode(self.enc, o)
         q_loss = sum(F.mse_loss(q, y) for q in self.q(self.critic_input(z, o), a))
         aux = 0.0
@@ -517,6 +524,9 @@ class SAC:
         self.q_opt.step()
 
         # actor: maximise min Q(o, pi(o)) - alpha log pi, the critics only read
+        if self.copies > 1:                                   # DrQ's actor reads the first copy
+            n = len(a) // self.copies
+            z, o = z[:n], {k: v[:n] for k, v in o.items()}
         z_pi = z.detach() if self.shared else self.encode(self.actor_enc, o)
         a_pi, logp = self.actor(z_pi)
         for p in self.q.parameters():

@@ -81,6 +81,8 @@ class Config:
     randomize: str = train_opt("", "draw each episode's scene from these families' training scenes, comma-separated "
                                    "(domain randomization: place, light, colour, parts, mixed)")
     shift: int = train_opt(0, "random image shift in the updates, up to this many pixels (DrQ; 0: none)", bounds=(0, 16))
+    drq: int = train_opt(1, "with --shift, each transition of a batch shifted this many times: the TD target averaged "
+                            "over them, the critics' loss over all (DrQ's K = M = 2; ours, issue 50's study)", bounds=(1, 8))
     critic_extra: bool = train_opt(False, "the paper's critics also read the time and the curriculum's E_r and Ex_r "
                                           "(known to the agent; --critic multimodal)")
     next_encoder: str = train_opt("target", "which encoder reads o' in the TD target: target (Polyak) or online (DrQ-v2)",
@@ -159,7 +161,8 @@ def train(cfg, log=lambda msg: print(msg, flush=True)):
     sac, stop, rng = make_sac(cfg), StopRule(cfg), np.random.default_rng(cfg.seed + 1)   # (rng: replay sampling)
     buf = policy.ReplayBuffer(cfg.buffer, obs_shapes(cfg), nstep=cfg.nstep, gamma=cfg.gamma)    # R
     run = rundir.Run(cfg, {"sac": sac, "curriculum": curr, "stop": stop, "env_rng": env.np_random, "sample_rng": rng},
-                     buf, log, probe_update=cfg.updates * rundir.update_seconds(sac, zero_batch(buf, cfg.batch)))
+                     buf, log, probe_update=cfg.updates * rundir.update_seconds(sac, zero_batch(buf,
+                                                                                             cfg.batch * cfg.drq)))
     if run.extended:                                       # a finished run trained on validates anew
         stop.passes = 0
     log(f"config: {asdict(cfg)}")
@@ -176,7 +179,7 @@ def train(cfg, log=lambda msg: print(msg, flush=True)):
             run.lap("env")
             # line 10, update the policy with SAC
             n = cfg.updates if ep >= cfg.warmup else 0
-            losses = [sac.update(buf.sample(cfg.batch, rng, cfg.augment, cfg.shift)) for _ in range(n)]
+            losses = [sac.update(buf.sample(cfg.batch, rng, cfg.augment, cfg.shift, cfg.drq)) for _ in range(n)]
             if cfg.reset and ep >= cfg.warmup and (ep + 1 - cfg.warmup) % cfg.reset == 0:
                 sac.reset_heads()
             run.lap("update")
@@ -256,7 +259,7 @@ def make_sac(cfg, device=None):
                       norm=cfg.fusion_norm, own_actor_encoder=cfg.actor_encoder == "own", aux_reward=cfg.aux_reward,
                       aux_state=cfg.aux_offset, image=cfg.image_encoder, image_norm=cfg.image_norm, q_norm=cfg.q_norm,
                       threads=cfg.threads or min(2, os.cpu_count() or 1), q_dropout=cfg.q_dropout, n_q=cfg.q_heads,
-                      aux_wrench=cfg.aux_wrench, image_feat=cfg.image_feat)
+                      aux_wrench=cfg.aux_wrench, image_feat=cfg.image_feat, copies=cfg.drq)
 
 
 def obs_shapes(cfg):
@@ -411,6 +414,7 @@ def check(cfg):
                                              cfg.aux_offset, cfg.aux_wrench) != (False, "target", "shared", 0.0, 0.0, 0.0),
              "--critic-extra, --next-encoder, --actor-encoder, --aux-reward, --aux-offset and --aux-wrench change the "
              "paper's critics: they need --critic multimodal"),
+            (cfg.drq > 1 and not cfg.shift, f"--drq {cfg.drq} averages over shifted copies: it needs --shift"),
             (cfg.buffer < max(cfg.batch, sim.MAX_STEPS), f"--buffer {cfg.buffer} must hold an episode ({sim.MAX_STEPS} "
                                                          f"transitions) and a batch (--batch {cfg.batch})"),
             (cfg.video and os.path.splitext(cfg.video)[1].lower() not in evaluate.VIDEO_CODECS,
@@ -452,7 +456,7 @@ def check(cfg):
 
 
 def default_run_dir(cfg):
-    """runs/<task>-[vanilla-]<obs>-<curriculum>[-e<E_r mm>][-roi-<roi>][-ctx-<context>][-<critic>][-aug<s>][-shift<px>][-rand-<families>][-extra]
+    """runs/<task>-[vanilla-]<obs>-<curriculum>[-e<E_r mm>][-roi-<roi>][-ctx-<context>][-<critic>][-aug<s>][-shift<px>][-drq<K>][-rand-<families>][-extra]
     [-next-online][-norm-modality][-own-actor-enc][-n<steps>][-auxr<w>][-auxo<w>][-img-<encoder>][-imgnorm-<norm>][-qnorm]
     [-qdrop<p>][-redq<n>][-reset<episodes>][-auxw<w>][-imgf<n>]
     [-<tag><value> of RUN_NAME_TAGS]-s<seed>:
@@ -464,6 +468,7 @@ def default_run_dir(cfg):
     name += f"-{cfg.critic}" if cfg.critic != Config.critic else ""
     name += f"-aug{cfg.augment:g}" if cfg.augment else ""
     name += f"-shift{cfg.shift}" if cfg.shift else ""
+    name += f"-drq{cfg.drq}" if cfg.drq > 1 else ""
     name += f"-rand-{cfg.randomize.replace(',', '+')}" if cfg.randomize else ""
     name += "-extra" if cfg.critic_extra else ""
     name += f"-next-{cfg.next_encoder}" if cfg.next_encoder != Config.next_encoder else ""

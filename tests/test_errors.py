@@ -115,7 +115,8 @@ MISTAKES = {   # a few of each kind; the files they point at are in `workdir`
                                                          ["--eval", "initial", "--json", "/proc/row.json"]],
     "a flag of the other mode, or one that would change nothing": [["--eval", "initial", "--lr", "0.1"],
                                                                    ["--json", "x.json"], ["--train-episode", "5"],
-                                                                   ["--critic-extra"]],
+                                                                   ["--critic-extra"], ["--aux-wrench", "1"],
+                                                                   ["--drq", "2"]],
     "a window without a display": [["--eval", "initial", "--gui"]],
 }
 

@@ -172,6 +172,18 @@ def test_dropout_and_an_ensemble_of_q_heads_only_where_asked():
     assert all(not torch.equal(a, b) for a, b in zip(before, sac.q.parameters()))    # every head learns
 
 
+def test_drq_copies_average_the_target_and_the_actor_reads_the_first():
+    rng = np.random.default_rng(8)
+    o, a, r, o2, term, disc = small_buffer(rng).sample(8, rng, shift=4, copies=2)
+    assert len(a) == 16 and np.array_equal(a[:8], a[8:]) and not np.array_equal(o["image"][:8], o["image"][8:])
+    torch.manual_seed(0)
+    sac = policy.SAC("ts-ptv", copies=2)
+    seen = []
+    sac.actor.register_forward_hook(lambda m, args, out: seen.append(len(args[0])))
+    assert np.isfinite(sac.update((o, a, r, o2, term, disc))["q_loss"])
+    assert seen == [16, 8]              # a' for every copy of o'; the actor's loss on the first copy of o
+
+
 def test_a_reset_redraws_the_heads_and_keeps_the_encoder():
     rng = np.random.default_rng(6)
     buf = small_buffer(rng)
