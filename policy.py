@@ -124,6 +124,21 @@ class SpatialImageEncoder(nn.Module):
 IMAGE_ENCODERS = {"cnn": ImageEncoder, "spatial": SpatialImageEncoder}   # cnn: the paper's (Fig. 4)
 
 
+class ImageDecoder(nn.Module):
+    """The CNN's mirror (SAC-AE's decoder; ours, --aux-recon): features (B, n) -> (B, 32, 1, 1) -> (B, 16, 8, 8) ->
+    (B, 8, 26, 26) -> (B, 1, 80, 80), the image as pixels() gives it."""
+
+    def __init__(self, n_feat):
+        super().__init__()
+        self.fc = nn.Linear(n_feat, 32)
+        self.deconv = nn.Sequential(nn.ReLU(), nn.ConvTranspose2d(32, 16, 8, stride=4), nn.ReLU(),
+                                    nn.ConvTranspose2d(16, 8, 5, stride=3), nn.ReLU(),
+                                    nn.ConvTranspose2d(8, 1, 4, stride=3, output_padding=1))
+
+    def forward(self, z):
+        return self.deconv(self.fc(z)[:, :, None, None])
+
+
 class SeriesEncoder(nn.Module):
     """2-layer LSTM, 64 hidden, over (B, 32, n_in) -> last hidden state -> (B, n_out)."""
 
@@ -430,7 +445,7 @@ class SAC:
                  lr=3e-4, gamma=0.95, tau=0.005, init_alpha=0.1, target_entropy=None, state_dim=0, device="cpu",
                  extra_dim=0, target_encoder=True, norm="joint", own_actor_encoder=False, aux_reward=0.0,
                  aux_state=0.0, image="cnn", image_norm="fixed", q_norm=False, threads=1, q_dropout=0.0, n_q=2,
-                 aux_wrench=0.0, image_feat=FEAT, copies=1):
+                 aux_wrench=0.0, image_feat=FEAT, copies=1, aux_recon=0.0, enc_lr=None):
         self.device, self.gamma, self.tau = torch.device(device), gamma, tau
         # copies K: a batch holds K augmented copies of each transition (ReplayBuffer.sample); the TD target is their
         # mean, the critics' loss is over all K and the actor reads the first: DrQ's K = M (Kostrikov et al. 2020;
@@ -473,8 +488,16 @@ class SAC:
         # observes (a forward model of touch, ours, issue 50's study: no label that training alone knows)
         self.aux_wrench = aux_wrench
         self.w_head = mlp(self.enc.out_dim + extra_dim + act_dim, 6, (256,)).to(self.device) if aux_wrench else None
-        heads = [h for h in (self.r_head, self.s_head, self.w_head) if h is not None]
-        self.q_opt = torch.optim.Adam(self._online_params + [p for h in heads for p in h.parameters()], lr=lr, fused=True)
+        # aux_recon w: a decoder rebuilds o's image from the critics' features, its squared error (x w) added to their
+        # loss (SAC-AE, Yarats et al. 2019; ours, issue 50's study: the image is observed, no privileged label)
+        self.aux_recon = aux_recon
+        self.decoder = ImageDecoder(self.enc.out_dim).to(self.device) if aux_recon else None
+        heads = [h for h in (self.r_head, self.s_head, self.w_head, self.decoder) if h is not None]
+        rest = list(self.q.parameters()) + [p for h in heads for p in h.parameters()]
+        # enc_lr: the critics' encoder's own Adam step size (ours, issue 50's study; None: lr, as the rest)
+        groups = [{"params": list(self.enc.parameters()) + rest}] if enc_lr is None else \
+            [{"params": list(self.enc.parameters()), "lr": enc_lr}, {"params": rest}]
+        self.q_opt = torch.optim.Adam(groups, lr=lr, fused=True)
         actor_params = list(self.actor.parameters()) + ([] if self.shared else list(self.actor_enc.parameters()))
         self.pi_opt = torch.optim.Adam(actor_params, lr=lr, fused=True)
         self.alpha_opt = torch.optim.Adam([self.log_alpha], lr=lr, fused=True)
@@ -516,6 +539,8 @@ class SAC:
             aux = self.aux_reward * F.mse_loss(self.r_head(torch.cat([self.critic_input(z, o), a], 1)).squeeze(-1), r)
         if self.aux_state:
             aux = aux + self.aux_state * F.mse_loss(self.s_head(z), o["state"][:, :4])
+        if self.aux_recon:
+            aux = aux + self.aux_recon * F.mse_loss(self.decoder(z), pixels(o["image"]))
         if self.aux_wrench:
             w_next = o2["wrench_hist"][:, -1] / self.enc.wrench_scale
             aux = aux + self.aux_wrench * F.mse_loss(self.w_head(torch.cat([self.critic_input(z, o), a], 1)), w_next)
@@ -588,6 +613,8 @@ class SAC:
             m["s_head"] = self.s_head
         if self.w_head is not None:
             m["w_head"] = self.w_head
+        if self.decoder is not None:
+            m["decoder"] = self.decoder
         return m
 
     def state_dict(self):

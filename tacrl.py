@@ -109,6 +109,10 @@ class Config:
                               "(Nikishin et al. 2022; ours, issue 50's study; 0: never)", bounds=(0, None))
     aux_wrench: float = train_opt(0.0, "weight of a loss on the critics' encoder predicting the next wrench reading "
                                        "(ours, issue 50's study; 0: none)", bounds=(0, None))
+    aux_recon: float = train_opt(0.0, "weight of a loss on the critics' encoder rebuilding the image (SAC-AE; ours, "
+                                      "issue 50's study; 0: none)", bounds=(0, None))
+    enc_lr: float = train_opt(0.0, "Adam step size of the critics' encoder (ours, issue 50's study; 0: --lr's)",
+                              bounds=(0, 1))
     image_feat: int = train_opt(policy.FEAT, "the image's feature size (the paper's 6; wider: ours, issue 50's study)",
                                 bounds=(1, 64))
     image_norm: str = train_opt("fixed", "the image's grey levels as the encoder reads them: x / 255 - 0.5 (fixed), or "
@@ -259,7 +263,8 @@ def make_sac(cfg, device=None):
                       norm=cfg.fusion_norm, own_actor_encoder=cfg.actor_encoder == "own", aux_reward=cfg.aux_reward,
                       aux_state=cfg.aux_offset, image=cfg.image_encoder, image_norm=cfg.image_norm, q_norm=cfg.q_norm,
                       threads=cfg.threads or min(2, os.cpu_count() or 1), q_dropout=cfg.q_dropout, n_q=cfg.q_heads,
-                      aux_wrench=cfg.aux_wrench, image_feat=cfg.image_feat, copies=cfg.drq)
+                      aux_wrench=cfg.aux_wrench, image_feat=cfg.image_feat, copies=cfg.drq, aux_recon=cfg.aux_recon,
+                      enc_lr=cfg.enc_lr or None)
 
 
 def obs_shapes(cfg):
@@ -411,9 +416,11 @@ def check(cfg):
             (cfg.obs == "ts-ptk" and cfg.task != "peg", "--obs ts-ptk (keypoint RL) finds the peg board's hole; the "
                                                         "gear's shaft is no keypoint it finds (Table 1 is the peg's)"),
             (cfg.critic != "multimodal" and (cfg.critic_extra, cfg.next_encoder, cfg.actor_encoder, cfg.aux_reward,
-                                             cfg.aux_offset, cfg.aux_wrench) != (False, "target", "shared", 0.0, 0.0, 0.0),
-             "--critic-extra, --next-encoder, --actor-encoder, --aux-reward, --aux-offset and --aux-wrench change the "
-             "paper's critics: they need --critic multimodal"),
+                                             cfg.aux_offset, cfg.aux_wrench, cfg.aux_recon, cfg.enc_lr)
+             != (False, "target", "shared", 0.0, 0.0, 0.0, 0.0, 0.0),
+             "--critic-extra, --next-encoder, --actor-encoder, --aux-reward, --aux-offset, --aux-wrench, --aux-recon and "
+             "--enc-lr change the paper's critics: they need --critic multimodal"),
+            (cfg.aux_recon and cfg.obs not in ("ts-ptv", "v"), f"--aux-recon rebuilds the image: --obs {cfg.obs} has none"),
             (cfg.drq > 1 and not cfg.shift, f"--drq {cfg.drq} averages over shifted copies: it needs --shift"),
             (cfg.buffer < max(cfg.batch, sim.MAX_STEPS), f"--buffer {cfg.buffer} must hold an episode ({sim.MAX_STEPS} "
                                                          f"transitions) and a batch (--batch {cfg.batch})"),
@@ -458,7 +465,7 @@ def check(cfg):
 def default_run_dir(cfg):
     """runs/<task>-[vanilla-]<obs>-<curriculum>[-e<E_r mm>][-roi-<roi>][-ctx-<context>][-<critic>][-aug<s>][-shift<px>][-drq<K>][-rand-<families>][-extra]
     [-next-online][-norm-modality][-own-actor-enc][-n<steps>][-auxr<w>][-auxo<w>][-img-<encoder>][-imgnorm-<norm>][-qnorm]
-    [-qdrop<p>][-redq<n>][-reset<episodes>][-auxw<w>][-imgf<n>]
+    [-qdrop<p>][-redq<n>][-reset<episodes>][-auxw<w>][-auxi<w>][-enclr<lr>][-imgf<n>]
     [-<tag><value> of RUN_NAME_TAGS]-s<seed>:
     the flags of the baselines, ablations and options are in its name, so that no run overwrites another's directory."""
     name = f"{cfg.task}-{'vanilla-' if cfg.vanilla else ''}{cfg.obs}-{cfg.curriculum}"
@@ -484,6 +491,8 @@ def default_run_dir(cfg):
     name += f"-redq{cfg.q_heads}" if cfg.q_heads != Config.q_heads else ""
     name += f"-reset{cfg.reset}" if cfg.reset else ""
     name += f"-auxw{cfg.aux_wrench:g}" if cfg.aux_wrench else ""
+    name += f"-auxi{cfg.aux_recon:g}" if cfg.aux_recon else ""
+    name += f"-enclr{cfg.enc_lr:g}" if cfg.enc_lr else ""
     name += f"-imgf{cfg.image_feat}" if cfg.image_feat != Config.image_feat else ""
     for field, tag in RUN_NAME_TAGS:                    # the scene and SAC's numbers, where not the defaults
         value = getattr(cfg, field)

@@ -116,7 +116,9 @@ MISTAKES = {   # a few of each kind; the files they point at are in `workdir`
     "a flag of the other mode, or one that would change nothing": [["--eval", "initial", "--lr", "0.1"],
                                                                    ["--json", "x.json"], ["--train-episode", "5"],
                                                                    ["--critic-extra"], ["--aux-wrench", "1"],
-                                                                   ["--drq", "2"]],
+                                                                   ["--drq", "2"], ["--aux-recon", "1"],
+                                                                   ["--critic", "multimodal", "--obs", "pt",
+                                                                    "--aux-recon", "1"]],
     "a window without a display": [["--eval", "initial", "--gui"]],
 }
 

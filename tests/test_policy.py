@@ -172,6 +172,23 @@ def test_dropout_and_an_ensemble_of_q_heads_only_where_asked():
     assert all(not torch.equal(a, b) for a, b in zip(before, sac.q.parameters()))    # every head learns
 
 
+def test_the_image_decoder_and_the_encoders_own_step_size_train_the_critics_encoder():
+    rng = np.random.default_rng(9)
+    b = small_buffer(rng).sample(8, rng)
+    encs = []
+    for kw in ({}, {"aux_recon": 1.0}, {"enc_lr": 1e-5}):
+        torch.manual_seed(0)
+        sac = policy.SAC("ts-ptv", **kw)
+        torch.manual_seed(1)
+        assert np.isfinite(sac.update(b)["q_loss"])
+        encs.append([p.detach().clone() for p in sac.enc.parameters()])
+    torch.manual_seed(0)
+    start = [p.detach().clone() for p in policy.SAC("ts-ptv").enc.parameters()]
+    step = lambda e: max((p - p0).abs().max().item() for p, p0 in zip(e, start))   # noqa: E731
+    assert not all(torch.equal(p, q) for p, q in zip(encs[0], encs[1]))           # the decoder's gradient reaches it
+    assert step(encs[2]) < 0.1 * step(encs[0])                                     # Adam's step is about the lr
+
+
 def test_drq_copies_average_the_target_and_the_actor_reads_the_first():
     rng = np.random.default_rng(8)
     o, a, r, o2, term, disc = small_buffer(rng).sample(8, rng, shift=4, copies=2)
