@@ -182,7 +182,8 @@ class Encoder(nn.Module):
         # they are joined (SERL and SAC-AE end each modality's encoder in LayerNorm + tanh), so that the CNN's
         # 6 and the LSTM's 12 features enter at the same scale
         seen = self.image is not None or self.keypoint is not None                 # the image's, or the keypoint's, 6
-        sizes = ([2 * FEAT] if kind != "v" else []) + ([self.out_dim - (2 * FEAT if kind != "v" else 0)] if seen else [])
+        series = 2 * FEAT if kind != "v" else 0
+        sizes = ([series] if series else []) + ([self.out_dim - series] if seen else [])
         self.norm = nn.LayerNorm(self.out_dim) if norm == "joint" else nn.ModuleList([nn.LayerNorm(n) for n in sizes])
 
     def forward(self, obs):
@@ -459,8 +460,9 @@ class SAC:
         enc = lambda: Encoder(obs_kind, pose_scale, wrench_scale, norm=norm, image=image,  # noqa: E731
                               image_norm=image_norm, image_feat=image_feat).to(self.device)
         self.enc = StateEncoder(state_dim, pose_scale, wrench_scale).to(self.device) if state_dim else enc()
-        self.q = (TwinQ(self.enc.out_dim + extra_dim, act_dim, norm=q_norm, dropout=q_dropout) if n_q == 2 else
-                  QEnsemble(self.enc.out_dim + extra_dim, act_dim, norm=q_norm, dropout=q_dropout, n=n_q)).to(self.device)
+        n_in = self.enc.out_dim + extra_dim
+        self.q = (TwinQ(n_in, act_dim, norm=q_norm, dropout=q_dropout) if n_q == 2 else
+                  QEnsemble(n_in, act_dim, norm=q_norm, dropout=q_dropout, n=n_q)).to(self.device)
         self.enc_targ, self.q_targ = copy.deepcopy(self.enc), copy.deepcopy(self.q)
         for p in list(self.enc_targ.parameters()) + list(self.q_targ.parameters()):
             p.requires_grad_(False)
@@ -671,7 +673,8 @@ class TrainedPolicy:
         self.device = device
         # (files before 'norm', 'image_encoder', 'image_norm' and 'image_feat': joint, cnn, fixed, 6)
         self.encoder = Encoder(d["obs"], norm=d.get("norm", "joint"), image=d.get("image_encoder", "cnn"),
-                               image_norm=d.get("image_norm", "fixed"), image_feat=d.get("image_feat", FEAT)).to(device).eval()
+                               image_norm=d.get("image_norm", "fixed"), image_feat=d.get("image_feat", FEAT))
+        self.encoder.to(device).eval()
         self.encoder.load_state_dict(d["encoder"])
         self.actor = Actor(self.encoder.out_dim).to(device).eval()
         self.actor.load_state_dict(d["actor"])

@@ -37,7 +37,7 @@ PROBE_SEED = 3000            # episode seeds from evaluate.episode_seed(PROBE_SE
 TAIL = 60                    # steps before a time-out a transition must be: 0.95^60 = 0.05 of the return unknown
 PROBE_STEPS = 30             # the probe's steps of each episode (6 s): its approach, where the image must say where the
                              # hole is, each episode's count the same (a failed one would weigh 120 steps, a success 25)
-OFFSET = ("x", "y", "z", "yaw")     # X - X_g as critic_state scales it: x, y over 5 mm, z over 25 mm, yaw over 0.025 rad
+OFFSET = ("x", "y", "z", "yaw")     # X - X_g as critic_state scales it: x, y / 5 mm, z / 25 mm, yaw / 0.025 rad
 
 
 def soft_returns(r, logp_next, gamma, alpha):
@@ -110,9 +110,10 @@ def diagnose(run_dir, episodes=40, log=print):
                      **{k: dict(zip(OFFSET, np.round(v, 3).tolist())) for k, v in r2.items()}}, "q_vs_mc": None}
     if q_mc:
         q, g = np.array(q_mc).T
-        out["q_vs_mc"] = {"transitions": len(q), "q_mean": round(float(q.mean()), 2), "mc_mean": round(float(g.mean()), 2),
-                          "bias": round(float((q - g).mean()), 2), "rmse": round(float(np.sqrt(((q - g) ** 2).mean())), 2),
-                          "corr": round(float(np.corrcoef(q, g)[0, 1]), 3)}
+        rnd = lambda x, n=2: round(float(x), n)         # noqa: E731
+        out["q_vs_mc"] = {"transitions": len(q), "q_mean": rnd(q.mean()), "mc_mean": rnd(g.mean()),
+                          "bias": rnd((q - g).mean()), "rmse": rnd(np.sqrt(((q - g) ** 2).mean())),
+                          "corr": rnd(np.corrcoef(q, g)[0, 1], 3)}
     return out
 
 
