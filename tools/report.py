@@ -771,6 +771,15 @@ def write_contexts(patterns, out_dir, levels=LEVELS, episodes=20, jobs=1, log=pr
     return 0
 
 
+def critics_kind(cfg):
+    """What a run's critics read and learn from beyond the actor's observation (write_compare's column)."""
+    if cfg["critic"] == "privileged":
+        return "X - X_g an input"
+    if cfg.get("aux_offset"):
+        return "X - X_g a label"
+    return "+ time, E_r, Ex_r" if cfg.get("critic_extra") else "the paper's"
+
+
 def critics_cells(run_dir):
     """tools/critics.py's diagnostics of a run as two table cells ('-' where not made)."""
     path = os.path.join(run_dir, "critics.json")
@@ -799,9 +808,12 @@ def write_compare(patterns, out_dir, name, log=print):
           "docstring says how; -: not made, Q's needs the run's checkpoint): Q's mean bias against the soft "
           "Monte-Carlo return and their correlation; the R^2 with which a linear probe of the critics' features "
           "(privileged runs: the actor's) predicts x and y of X - X_g, and in brackets the same encoder's untrained.", "",
-          "| settings | seed | episodes | E_r last / max (mm) | first at final | eval SR " +
+          "Critics: what they read and learn from, beside the actor's observation: nothing (the paper's), what the "
+          "agent knows besides it (`--critic-extra`: the time, E_r and Ex_r), X - X_g as a label (`--aux-offset`), or "
+          "X - X_g as an input (privileged).", "",
+          "| settings | critics | seed | episodes | E_r last / max (mm) | first at final | eval SR " +
           " / ".join(f"{mm:g}" for mm in LEVELS) + " mm | minutes | Q - MC (corr) | probe R^2 x / y |",
-          "|---" * 9 + "|"]
+          "|---" * 10 + "|"]
     groups = {}
     setting = lambda cfg: f"{cfg['task']}, " + method_of(cfg) + (  # noqa: E731  (a task's runs never share a row)
         " (privileged critics)" if cfg["critic"] == "privileged" else "")
@@ -811,7 +823,7 @@ def write_compare(patterns, out_dir, name, log=print):
         ev = r["eval"]
         sr = " / ".join(f"{x['success_rate']:.2f}" for x in ev["rows"]) if ev else "unfinished"
         minutes = ev["train_minutes"] if ev else m["elapsed_s"][-1] / 60
-        md.append(f"| {setting(cfg)} | {cfg['seed']} | {len(m['episode'])} | {m['e_r_mm'][-1]:.1f} / "
+        md.append(f"| {setting(cfg)} | {critics_kind(cfg)} | {cfg['seed']} | {len(m['episode'])} | {m['e_r_mm'][-1]:.1f} / "
                   f"{m['e_r_mm'].max():.1f} | {int(m['episode'][at_final[0]]) if len(at_final) else '-'} | {sr} | "
                   f"{minutes:.1f} | {critics_cells(r['dir'])} |")
         groups.setdefault(setting(cfg), []).append(r)
