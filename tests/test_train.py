@@ -394,8 +394,8 @@ def test_critics_diagnostics_of_a_run_and_its_compare_row(tiny_run, tmp_path, mo
     monkeypatch.setattr(sim, "MAX_STEPS", SHORT)
     run = tmp_path / "runs" / "run"
     shutil.copytree(tiny_run["dir"], run)
-    assert tacrl.command("critics", lambda: critics.main([str(run), "--episodes", "1"])) == 2
-    assert tacrl.command("critics", lambda: critics.main([str(run), "--episodes", "2"])) == 0
+    assert tacrl.command("critics", lambda: critics.main([str(run), "--resets", "2"])) == 2
+    assert tacrl.command("critics", lambda: critics.main([str(run), "--resets", "6", "--episodes", "1"])) == 0
     c = json.loads((run / "critics.json").read_text())
     assert set(c["probe"]["r2"]) == set(c["probe"]["r2_untrained"]) == {"x", "y", "z", "yaw"}
     assert c["probe"]["features"] == "the actor's encoder"          # tiny_run's critics are privileged
