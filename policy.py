@@ -315,12 +315,15 @@ class ReplayBuffer:
         self.i = (self.i + T) % self.capacity
         self.n = min(self.n + T, self.capacity)
 
-    def sample(self, batch, rng, jitter_s=0.0, shift=0, copies=1):
+    def sample(self, batch, rng, jitter_s=0.0, shift=0, copies=1, positive=0):
         """A batch of transitions (o, a, r, o', terminated); with jitter_s, their images jittered (--augment);
         with shift, randomly shifted by up to that many pixels (--shift). copies: the batch `copies` times over,
-        one after the other, each image augmented anew (DrQ's K = M, SAC(copies=...) averages them)."""
+        one after the other, each image augmented anew (DrQ's K = M, SAC(copies=...) averages them). positive:
+        also o['image_pos'], o's image shifted anew by up to this many pixels (CURL's positive)."""
         idx = np.tile(rng.integers(0, self.n, batch), copies)
         o, o2 = ({k: v[idx] for k, v in d.items()} for d in (self.obs, self.next_obs))
+        if positive and "image" in o:
+            o["image_pos"] = random_shift(o["image"], rng, positive)
         if jitter_s and "image" in o:           # o and o' jittered independently, as DrQ does
             o["image"], o2["image"] = jitter(o["image"], rng, jitter_s), jitter(o2["image"], rng, jitter_s)
         if shift and "image" in o:
@@ -446,7 +449,7 @@ class SAC:
                  lr=3e-4, gamma=0.95, tau=0.005, init_alpha=0.1, target_entropy=None, state_dim=0, device="cpu",
                  extra_dim=0, target_encoder=True, norm="joint", own_actor_encoder=False, aux_reward=0.0,
                  aux_state=0.0, image="cnn", image_norm="fixed", q_norm=False, threads=1, q_dropout=0.0, n_q=2,
-                 aux_wrench=0.0, image_feat=FEAT, copies=1, aux_recon=0.0, enc_lr=None):
+                 aux_wrench=0.0, image_feat=FEAT, copies=1, aux_recon=0.0, enc_lr=None, aux_curl=0.0):
         self.device, self.gamma, self.tau = torch.device(device), gamma, tau
         # copies K: a batch holds K augmented copies of each transition (ReplayBuffer.sample); the TD target is their
         # mean, the critics' loss is over all K and the actor reads the first: DrQ's K = M (Kostrikov et al. 2020;
@@ -494,7 +497,12 @@ class SAC:
         # loss (SAC-AE, Yarats et al. 2019; ours, issue 50's study: the image is observed, no privileged label)
         self.aux_recon = aux_recon
         self.decoder = ImageDecoder(self.enc.out_dim).to(self.device) if aux_recon else None
-        heads = [h for h in (self.r_head, self.s_head, self.w_head, self.decoder) if h is not None]
+        # aux_curl w: CURL's contrastive loss (Srinivas et al. 2020; ours, issue 50's study): the critics' features of o
+        # (the anchor) score the target encoder's of the same o shifted anew (o['image_pos'], the positive) above
+        # those of the batch's other observations, through a learned bilinear W; its cross-entropy (x w) is added
+        self.aux_curl = aux_curl
+        self.curl_w = nn.Linear(self.enc.out_dim, self.enc.out_dim, bias=False).to(self.device) if aux_curl else None
+        heads = [h for h in (self.r_head, self.s_head, self.w_head, self.decoder, self.curl_w) if h is not None]
         rest = list(self.q.parameters()) + [p for h in heads for p in h.parameters()]
         # enc_lr: the critics' encoder's own Adam step size (ours, issue 50's study; None: lr, as the rest)
         groups = [{"params": list(self.enc.parameters()) + rest}] if enc_lr is None else \
@@ -543,6 +551,12 @@ class SAC:
             aux = aux + self.aux_state * F.mse_loss(self.s_head(z), o["state"][:, :4])
         if self.aux_recon:
             aux = aux + self.aux_recon * F.mse_loss(self.decoder(z), pixels(o["image"]))
+        if self.aux_curl:
+            with torch.no_grad():
+                z_pos = self.enc_targ({**o, "image": o["image_pos"]})                      # (B, n_feat)
+            logits = self.curl_w(z) @ z_pos.T                                              # (B, B): anchor i, key j
+            aux = aux + self.aux_curl * F.cross_entropy(logits - logits.max(1, keepdim=True).values,
+                                                         torch.arange(len(z), device=self.device))
         if self.aux_wrench:
             w_next = o2["wrench_hist"][:, -1] / self.enc.wrench_scale
             aux = aux + self.aux_wrench * F.mse_loss(self.w_head(torch.cat([self.critic_input(z, o), a], 1)), w_next)
@@ -617,6 +631,8 @@ class SAC:
             m["w_head"] = self.w_head
         if self.decoder is not None:
             m["decoder"] = self.decoder
+        if self.curl_w is not None:
+            m["curl_w"] = self.curl_w
         return m
 
     def state_dict(self):

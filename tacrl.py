@@ -50,6 +50,9 @@ def train_opt(*args, **kw):                       # a flag for training only (re
     return opt(*args, mode="train", **kw)
 
 
+CURL_SHIFT = 4                                    # px: --aux-curl's positive, o's image shifted anew (DrQ's pad)
+
+
 @dataclass
 class Config:
     # what to run
@@ -111,6 +114,8 @@ class Config:
                                        "(ours, issue 50's study; 0: none)", bounds=(0, None))
     aux_recon: float = train_opt(0.0, "weight of a loss on the critics' encoder rebuilding the image (SAC-AE; ours, "
                                       "issue 50's study; 0: none)", bounds=(0, None))
+    aux_curl: float = train_opt(0.0, "weight of CURL's contrastive loss on the critics' encoder, o against o shifted "
+                                     f"anew by up to {CURL_SHIFT} px (ours, issue 50's study; 0: none)", bounds=(0, None))
     enc_lr: float = train_opt(0.0, "Adam step size of the critics' encoder (ours, issue 50's study; 0: --lr's)",
                               bounds=(0, 1))
     image_feat: int = train_opt(policy.FEAT, "the image's feature size (the paper's 6; wider: ours, issue 50's study)",
@@ -183,7 +188,8 @@ def train(cfg, log=lambda msg: print(msg, flush=True)):
             run.lap("env")
             # line 10, update the policy with SAC
             n = cfg.updates if ep >= cfg.warmup else 0
-            losses = [sac.update(buf.sample(cfg.batch, rng, cfg.augment, cfg.shift, cfg.drq)) for _ in range(n)]
+            losses = [sac.update(buf.sample(cfg.batch, rng, cfg.augment, cfg.shift, cfg.drq,
+                                            CURL_SHIFT if cfg.aux_curl else 0)) for _ in range(n)]
             if cfg.reset and ep >= cfg.warmup and (ep + 1 - cfg.warmup) % cfg.reset == 0:
                 sac.reset_heads()
             run.lap("update")
@@ -264,7 +270,7 @@ def make_sac(cfg, device=None):
                       aux_state=cfg.aux_offset, image=cfg.image_encoder, image_norm=cfg.image_norm, q_norm=cfg.q_norm,
                       threads=cfg.threads or min(2, os.cpu_count() or 1), q_dropout=cfg.q_dropout, n_q=cfg.q_heads,
                       aux_wrench=cfg.aux_wrench, image_feat=cfg.image_feat, copies=cfg.drq, aux_recon=cfg.aux_recon,
-                      enc_lr=cfg.enc_lr or None)
+                      enc_lr=cfg.enc_lr or None, aux_curl=cfg.aux_curl)
 
 
 def obs_shapes(cfg):
@@ -416,11 +422,12 @@ def check(cfg):
             (cfg.obs == "ts-ptk" and cfg.task != "peg", "--obs ts-ptk (keypoint RL) finds the peg board's hole; the "
                                                         "gear's shaft is no keypoint it finds (Table 1 is the peg's)"),
             (cfg.critic != "multimodal" and (cfg.critic_extra, cfg.next_encoder, cfg.actor_encoder, cfg.aux_reward,
-                                             cfg.aux_offset, cfg.aux_wrench, cfg.aux_recon, cfg.enc_lr)
-             != (False, "target", "shared", 0.0, 0.0, 0.0, 0.0, 0.0),
-             "--critic-extra, --next-encoder, --actor-encoder, --aux-reward, --aux-offset, --aux-wrench, --aux-recon and "
-             "--enc-lr change the paper's critics: they need --critic multimodal"),
-            (cfg.aux_recon and cfg.obs not in ("ts-ptv", "v"), f"--aux-recon rebuilds the image: --obs {cfg.obs} has none"),
+                                             cfg.aux_offset, cfg.aux_wrench, cfg.aux_recon, cfg.aux_curl, cfg.enc_lr)
+             != (False, "target", "shared", 0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
+             "--critic-extra, --next-encoder, --actor-encoder, --aux-reward, --aux-offset, --aux-wrench, --aux-recon, "
+             "--aux-curl and --enc-lr change the paper's critics: they need --critic multimodal"),
+            ((cfg.aux_recon or cfg.aux_curl) and cfg.obs not in ("ts-ptv", "v"),
+             f"--aux-recon and --aux-curl read the image: --obs {cfg.obs} has none"),
             (cfg.drq > 1 and not cfg.shift, f"--drq {cfg.drq} averages over shifted copies: it needs --shift"),
             (cfg.buffer < max(cfg.batch, sim.MAX_STEPS), f"--buffer {cfg.buffer} must hold an episode ({sim.MAX_STEPS} "
                                                          f"transitions) and a batch (--batch {cfg.batch})"),
@@ -465,7 +472,7 @@ def check(cfg):
 def default_run_dir(cfg):
     """runs/<task>-[vanilla-]<obs>-<curriculum>[-e<E_r mm>][-roi-<roi>][-ctx-<context>][-<critic>][-aug<s>][-shift<px>][-drq<K>][-rand-<families>][-extra]
     [-next-online][-norm-modality][-own-actor-enc][-n<steps>][-auxr<w>][-auxo<w>][-img-<encoder>][-imgnorm-<norm>][-qnorm]
-    [-qdrop<p>][-redq<n>][-reset<episodes>][-auxw<w>][-auxi<w>][-enclr<lr>][-imgf<n>]
+    [-qdrop<p>][-redq<n>][-reset<episodes>][-auxw<w>][-auxi<w>][-curl<w>][-enclr<lr>][-imgf<n>]
     [-<tag><value> of RUN_NAME_TAGS]-s<seed>:
     the flags of the baselines, ablations and options are in its name, so that no run overwrites another's directory."""
     name = f"{cfg.task}-{'vanilla-' if cfg.vanilla else ''}{cfg.obs}-{cfg.curriculum}"
@@ -492,6 +499,7 @@ def default_run_dir(cfg):
     name += f"-reset{cfg.reset}" if cfg.reset else ""
     name += f"-auxw{cfg.aux_wrench:g}" if cfg.aux_wrench else ""
     name += f"-auxi{cfg.aux_recon:g}" if cfg.aux_recon else ""
+    name += f"-curl{cfg.aux_curl:g}" if cfg.aux_curl else ""
     name += f"-enclr{cfg.enc_lr:g}" if cfg.enc_lr else ""
     name += f"-imgf{cfg.image_feat}" if cfg.image_feat != Config.image_feat else ""
     for field, tag in RUN_NAME_TAGS:                    # the scene and SAC's numbers, where not the defaults

@@ -117,6 +117,7 @@ MISTAKES = {   # a few of each kind; the files they point at are in `workdir`
                                                                    ["--json", "x.json"], ["--train-episode", "5"],
                                                                    ["--critic-extra"], ["--aux-wrench", "1"],
                                                                    ["--drq", "2"], ["--aux-recon", "1"],
+                                                                   ["--aux-curl", "1"],
                                                                    ["--critic", "multimodal", "--obs", "pt",
                                                                     "--aux-recon", "1"]],
     "a window without a display": [["--eval", "initial", "--gui"]],

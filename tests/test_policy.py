@@ -189,6 +189,21 @@ def test_the_image_decoder_and_the_encoders_own_step_size_train_the_critics_enco
     assert step(encs[2]) < 0.1 * step(encs[0])                                     # Adam's step is about the lr
 
 
+def test_curl_scores_the_positive_and_trains_the_critics_encoder():
+    rng = np.random.default_rng(10)
+    buf = small_buffer(rng)
+    b = buf.sample(8, rng, positive=4)
+    assert b[0]["image_pos"].shape == (8, 80, 80) and not np.array_equal(b[0]["image_pos"], b[0]["image"])
+    encs = []
+    for w in (0.0, 1.0):
+        torch.manual_seed(0)
+        sac = policy.SAC("ts-ptv", aux_curl=w)
+        torch.manual_seed(1)
+        assert np.isfinite(sac.update(b)["q_loss"])
+        encs.append([p.detach().clone() for p in sac.enc.parameters()])
+    assert not all(torch.equal(p, q) for p, q in zip(*encs))      # the contrastive gradient reaches it
+
+
 def test_drq_copies_average_the_target_and_the_actor_reads_the_first():
     rng = np.random.default_rng(8)
     o, a, r, o2, term, disc = small_buffer(rng).sample(8, rng, shift=4, copies=2)
