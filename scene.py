@@ -21,6 +21,7 @@ import socket
 import sys
 import tempfile
 from dataclasses import dataclass
+from importlib import metadata
 
 import numpy as np
 
@@ -50,7 +51,20 @@ with quiet_c_output():
 import control as ctl
 
 
-ASSETS = os.path.join(os.path.dirname(os.path.abspath(__file__)), "assets")
+def assets_dir():
+    """assets/ (ur5.urdf): beside the modules in a checkout or an editable install; where pip put pyproject's
+    data-files (<prefix>/share/tacrl/assets) after `pip install .`, which installs the modules alone beside them."""
+    here = os.path.join(os.path.dirname(os.path.abspath(__file__)), "assets")
+    if os.path.isdir(here):
+        return here
+    try:
+        urdf = [f for f in metadata.files("tacrl") or () if f.name == "ur5.urdf"]
+    except metadata.PackageNotFoundError:
+        urdf = []
+    return os.path.normpath(os.path.dirname(str(urdf[0].locate()))) if urdf else here
+
+
+ASSETS = assets_dir()
 
 # ---------------------------------------------------------------- the clock, the sensors, the parts (paper Sec. 5.1.1)
 POLICY_HZ, CONTROL_HZ, PHYSICS_HZ = 5, 120, 240
