@@ -79,7 +79,7 @@ def test_progress_lines_from_runs_started_at_once_stay_whole():
 def test_a_sweep_runs_as_ray_tasks_on_a_local_instance(tmp_path, monkeypatch):
     """The plan's commands as Ray tasks, each writing its run dir's log where the driver runs (the same paths on
     every node); stand-in commands, as in the local test."""
-    import ray
+    ray = pytest.importorskip("ray", reason="the `ray` extra is not installed")
     jobs = sweep.plan([], [0, 1], str(tmp_path / "runs"), TINY)
     monkeypatch.setattr(sweep, "command", lambda job, threads: [
         sys.executable, "-c", f"import os; print('run', {job.run_dir!r}, os.environ['OMP_NUM_THREADS'], os.getcwd())"])
