@@ -67,8 +67,8 @@ def test_peg_inserts_when_centred(peg_world):
 
 
 def test_centred_peg_with_lateral_noise_is_not_jammed():
-    # bench/jam_noise.py's first episode (Ex_r 20 mm, lateral noise std 0.05): with Bullet's 20 mm
-    # contact-breaking threshold a stale chamfer contact held this peg 1 mm into the hole. Without the
+    # the first episode of bench/jam_noise.py (at commit d6ea72e; Ex_r 20 mm, lateral noise std 0.05): with Bullet's
+    # 20 mm contact-breaking threshold a stale chamfer contact held this peg 1 mm into the hole. Without the
     # sensor's drift, which alone jams 2 of 8 such episodes (its bias moves the soft controller's rest)
     env = sim.AssemblyEnv("peg", e_r=0.0, image=False, ft_noise=False)
     env.set_ranges(0.0, 0.02)
