@@ -170,8 +170,7 @@ def train(cfg, log=lambda msg: print(msg, flush=True)):
     sac, stop, rng = make_sac(cfg), StopRule(cfg), np.random.default_rng(cfg.seed + 1)   # (rng: replay sampling)
     buf = policy.ReplayBuffer(cfg.buffer, obs_shapes(cfg), nstep=cfg.nstep, gamma=cfg.gamma)    # R
     run = rundir.Run(cfg, {"sac": sac, "curriculum": curr, "stop": stop, "env_rng": env.np_random, "sample_rng": rng},
-                     buf, log, probe_update=cfg.updates * rundir.update_seconds(sac, zero_batch(buf,
-                                                                                             cfg.batch * cfg.drq)))
+                     buf, log, probe_update=cfg.updates * rundir.update_seconds(sac, zero_batch(buf, cfg)))
     if run.extended:                                       # a finished run trained on validates anew
         stop.passes = 0
     log(f"config: {asdict(cfg)}")
@@ -282,10 +281,13 @@ def obs_shapes(cfg):
             **({"extra": (EXTRA_DIM,)} if cfg.critic_extra else {})}
 
 
-def zero_batch(buf, batch):
-    """A batch of zeros shaped as buf.sample gives one (for the update-time probe)."""
-    o = {k: np.zeros((batch, *v.shape[1:]), v.dtype) for k, v in buf.obs.items()}
-    return o, np.zeros((batch, 6), np.float32), np.zeros(batch, np.float32), o, np.zeros(batch, np.float32)
+def zero_batch(buf, cfg):
+    """A batch of zeros shaped as buf.sample gives the run one (for the update-time probe)."""
+    n = cfg.batch * cfg.drq
+    o = {k: np.zeros((n, *v.shape[1:]), v.dtype) for k, v in buf.obs.items()}
+    if cfg.aux_curl:
+        o["image_pos"] = o["image"]
+    return o, np.zeros((n, 6), np.float32), np.zeros(n, np.float32), o, np.zeros(n, np.float32)
 
 
 class StopRule:

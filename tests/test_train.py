@@ -424,3 +424,16 @@ def test_soft_returns_and_the_probes_regression():
     y = np.stack([x @ rng.normal(size=5), rng.normal(size=400)], 1)      # one target linear in x, one noise
     r2 = critics.ridge_r2(x[:200], y[:200], x[200:], y[200:], lam=1e-4)
     assert r2[0] > 0.99 and r2[1] < 0.05
+
+
+def test_the_critics_studys_options_all_train_a_run(tmp_path, monkeypatch):
+    # every option of issue 50's screen at once, through Algorithm 1 (the update-time probe, the sampling, the
+    # resets, the evaluation), so that none fails only in a real run
+    monkeypatch.setattr(sim, "MAX_STEPS", SHORT)
+    argv = ["--task", "peg", "--error-mm", "1", "--train-episodes", "3", "--warmup", "1", "--updates", "2",
+            "--batch", "4", "--episodes", "1", "--eval-levels", "1", "--buffer", "40", "--threads", "1",
+            "--critic", "multimodal", "--critic-extra", "--q-norm", "--q-dropout", "0.1", "--q-heads", "3",
+            "--reset", "1", "--aux-wrench", "1", "--aux-recon", "1", "--aux-curl", "1", "--enc-lr", "1e-4",
+            "--image-feat", "8", "--shift", "2", "--drq", "2", "--run-dir", str(tmp_path / "run")]
+    result = tacrl.train(tacrl.parse_args(argv), log=lambda *_: None)
+    assert result["train_episodes"] == 3 and len(result["rows"]) == 1
