@@ -269,6 +269,11 @@ class QEnsemble(nn.Module):
         return tuple(h(za).squeeze(-1) for h in self.heads)
 
 
+def actor_value(qs):
+    """The critics' heads (B,) each -> what the actor maximises: twin Q's smaller, REDQ's mean over its heads."""
+    return torch.min(*qs) if len(qs) == 2 else torch.stack(qs).mean(0)
+
+
 @torch.no_grad()
 def act(enc, actor, obs, deterministic=False, device="cpu"):
     """One env observation (unbatched dict of arrays) -> action (6,) in [-1, 1]."""
@@ -543,10 +548,12 @@ class SAC:
             if self.copies > 1:                               # DrQ: the target averaged over the copies of o'
                 y = y.view(self.copies, -1).mean(0).repeat(self.copies)
         z = self.encode(self.enc, o)
-        q_loss = sum(F.mse_loss(q, y) for q in self.q(self.critic_input(z, o), a))
+        zc = self.critic_input(z, o)
+        q_loss = sum(F.mse_loss(q, y) for q in self.q(zc, a))
+        za = torch.cat([zc, a], 1) if self.aux_reward or self.aux_wrench else None     # the reward and wrench heads'
         aux = 0.0
         if self.aux_reward:
-            aux = self.aux_reward * F.mse_loss(self.r_head(torch.cat([self.critic_input(z, o), a], 1)).squeeze(-1), r)
+            aux = self.aux_reward * F.mse_loss(self.r_head(za).squeeze(-1), r)
         if self.aux_state:
             aux = aux + self.aux_state * F.mse_loss(self.s_head(z), o["state"][:, :4])
         if self.aux_recon:
@@ -559,7 +566,7 @@ class SAC:
                                                          torch.arange(len(z), device=self.device))
         if self.aux_wrench:
             w_next = o2["wrench_hist"][:, -1] / self.enc.wrench_scale
-            aux = aux + self.aux_wrench * F.mse_loss(self.w_head(torch.cat([self.critic_input(z, o), a], 1)), w_next)
+            aux = aux + self.aux_wrench * F.mse_loss(self.w_head(za), w_next)
         self.q_opt.zero_grad(set_to_none=True)
         (q_loss + aux).backward()
         self.q_opt.step()
@@ -575,8 +582,7 @@ class SAC:
         q_pi = self.q(self.critic_input(z.detach(), o), a_pi)
         for p in self.q.parameters():
             p.requires_grad_(True)
-        q_pi = torch.min(*q_pi) if len(q_pi) == 2 else torch.stack(q_pi).mean(0)     # REDQ's actor: the heads' mean
-        pi_loss = (alpha * logp - q_pi).mean()
+        pi_loss = (alpha * logp - actor_value(q_pi)).mean()
         self.pi_opt.zero_grad(set_to_none=True)
         pi_loss.backward()
         self.pi_opt.step()

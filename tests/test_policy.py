@@ -172,16 +172,20 @@ def test_dropout_and_an_ensemble_of_q_heads_only_where_asked():
     assert all(not torch.equal(a, b) for a, b in zip(before, sac.q.parameters()))    # every head learns
 
 
+def updated(batch, **kw):
+    """SAC("ts-ptv", **kw) as seed 0 draws it, after one update on batch (the actor's samples from seed 1), and its
+    critics' encoder's parameters: options that differ only there start from the same networks."""
+    torch.manual_seed(0)
+    sac = policy.SAC("ts-ptv", **kw)
+    torch.manual_seed(1)
+    assert np.isfinite(sac.update(batch)["q_loss"])
+    return sac, [p.detach().clone() for p in sac.enc.parameters()]
+
+
 def test_the_image_decoder_and_the_encoders_own_step_size_train_the_critics_encoder():
     rng = np.random.default_rng(9)
     b = small_buffer(rng).sample(8, rng)
-    encs = []
-    for kw in ({}, {"aux_recon": 1.0}, {"enc_lr": 1e-5}):
-        torch.manual_seed(0)
-        sac = policy.SAC("ts-ptv", **kw)
-        torch.manual_seed(1)
-        assert np.isfinite(sac.update(b)["q_loss"])
-        encs.append([p.detach().clone() for p in sac.enc.parameters()])
+    encs = [updated(b, **kw)[1] for kw in ({}, {"aux_recon": 1.0}, {"enc_lr": 1e-5})]
     torch.manual_seed(0)
     start = [p.detach().clone() for p in policy.SAC("ts-ptv").enc.parameters()]
     step = lambda e: max((p - p0).abs().max().item() for p, p0 in zip(e, start))   # noqa: E731
@@ -194,13 +198,7 @@ def test_curl_scores_the_positive_and_trains_the_critics_encoder():
     buf = small_buffer(rng)
     b = buf.sample(8, rng, positive=4)
     assert b[0]["image_pos"].shape == (8, 80, 80) and not np.array_equal(b[0]["image_pos"], b[0]["image"])
-    encs = []
-    for w in (0.0, 1.0):
-        torch.manual_seed(0)
-        sac = policy.SAC("ts-ptv", aux_curl=w)
-        torch.manual_seed(1)
-        assert np.isfinite(sac.update(b)["q_loss"])
-        encs.append([p.detach().clone() for p in sac.enc.parameters()])
+    encs = [updated(b, aux_curl=w)[1] for w in (0.0, 1.0)]
     assert not all(torch.equal(p, q) for p, q in zip(*encs))      # the contrastive gradient reaches it
 
 
@@ -236,14 +234,9 @@ def test_a_reset_redraws_the_heads_and_keeps_the_encoder():
 def test_the_next_wrench_head_trains_the_critics_encoder():
     rng = np.random.default_rng(7)
     b = small_buffer(rng).sample(8, rng)
-    sacs = []
-    for w in (0.0, 1.0):
-        torch.manual_seed(0)
-        sacs.append(policy.SAC("ts-ptv", aux_wrench=w))
-        torch.manual_seed(1)
-        sacs[-1].update(b)
-    assert sacs[0].w_head is None and sacs[1].w_head is not None
-    assert not all(torch.equal(p, q) for p, q in zip(sacs[0].enc.parameters(), sacs[1].enc.parameters()))
+    (without, enc0), (with_head, enc1) = (updated(b, aux_wrench=w) for w in (0.0, 1.0))
+    assert without.w_head is None and with_head.w_head is not None
+    assert not all(torch.equal(p, q) for p, q in zip(enc0, enc1))
 
 
 @pytest.fixture

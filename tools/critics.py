@@ -31,6 +31,7 @@ import torch  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))   # the core modules, one folder up
 import evaluate  # noqa: E402
+import policy  # noqa: E402
 import report  # noqa: E402
 import tacrl  # noqa: E402
 from tacrl import ArgError  # noqa: E402
@@ -113,7 +114,7 @@ def q_against_returns(sac, env, cfg, seeds, log):
         o = {key: torch.as_tensor(v[:T]) for key, v in ep["obs"].items()}
         with torch.no_grad():
             qs = sac.q(sac.critic_input(sac.enc(o), o), torch.as_tensor(ep["act"]))
-        q = (torch.min(*qs) if len(qs) == 2 else torch.stack(qs).mean(0)).numpy()
+        q = policy.actor_value(qs).numpy()
         g = soft_returns(ep["rew"], np.append(logps[1:], 0.0), cfg.gamma, sac.log_alpha.exp().item())
         known = np.arange(T) < (T if term else T - TAIL)
         pairs += list(zip(q[known], g[known]))
