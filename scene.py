@@ -20,7 +20,7 @@ import os
 import socket
 import sys
 import tempfile
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from importlib import metadata
 
 import numpy as np
@@ -157,7 +157,10 @@ WORKCELL = [((0.004, 0.124, 0.010), (0.386, 0.0, 0.010), FENCE), ((0.004, 0.124,
 class Context:
     """Where the board stands (its hole or shaft axis, its yaw) and what surrounds it. objects: boxes
     (half extents, (dx, dy) in the board's frame, rgba) standing on the table (or, with on_board, on the
-    board's top); light: getCameraImage's light arguments as (name, value) pairs, () for TinyRenderer's own."""
+    board's top); light: getCameraImage's light arguments as (name, value) pairs, () for TinyRenderer's own.
+    What the part touches (the touch family; None and (0, 0): the world's own): friction, the coefficient of the
+    part sliding on the board, hole or shaft; clearance, diametral, m; tilt, the board's about its x and y, rad.
+    These three stay out of the repr, so that the other contexts' keys (context_key) stay as they were."""
     board_xy: tuple = (0.50, 0.0)
     board_yaw: float = 0.0
     table_rgba: tuple = WOOD
@@ -165,6 +168,9 @@ class Context:
     objects: tuple = ()
     on_board: bool = False
     light: tuple = ()
+    friction: float = field(default=None, repr=False)
+    clearance: float = field(default=None, repr=False)
+    tilt: tuple = field(default=(0.0, 0.0), repr=False)
 
 
 # Every context but 'train' is for testing. The four other places of the board on the table (the paper's
@@ -195,7 +201,10 @@ CONTEXTS = {
 # one scene from a seed. Seeds from FAMILY_TEST_SEED0 up are held out for testing ('light:test' draws one
 # anew each episode); training's randomization (sim.AssemblyEnv's `randomize`) draws seeds below it.
 # The ranges are ours (no source gives a workcell's), each meant as what one workcell sees over a day:
-FAMILIES = ("place", "light", "colour", "parts", "mixed")
+FAMILIES = ("place", "light", "colour", "parts", "objects", "touch", "mixed")
+SEEN = FAMILIES[:5]                                   # the families of what the camera sees, which mixed draws together
+# each family's key to its seeds' draws: one added takes the next, so that no earlier family's scenes change
+FAMILY_KEYS = ("place", "light", "colour", "parts", "mixed", "objects", "touch")
 FAMILY_TEST_SEED0 = 10_000
 PLACE_RING, PLACE_X, PLACE_Y, PLACE_YAW = (0.12, 0.32), (0.32, 0.70), (-0.32, 0.32), 0.5   # m from training's, m, rad
 LIGHT_ELEVATION, LIGHT_AMBIENT, LIGHT_DIFFUSE = (np.radians(35), np.radians(85)), (0.3, 0.8), (0.15, 0.5)
@@ -211,17 +220,31 @@ LOOSE_PARTS = ((0.0035, 0.0035, 0.0016), (0.0015, 0.009, 0.0015), (0.008, 0.008,
                (0.0025, 0.012, 0.0006))
 PART_COLOURS = (GREY, (0.7, 0.7, 0.72, 1), DARK, BRASS, (0.8, 0.1, 0.1, 1), PART_BLUE)
 PARTS_PER_SCENE, BOARD_HALF = (1, 4), 0.06          # the boards' half side, m (peg plate 0.12 m; gear plate 2 x 0.06)
+# What else a workbench holds beside the hole: fixtures, clamps, blocks, trays, the next part (boxes on the board).
+# Ours: 1-4 cm across and 0.5-3 cm tall (a small toggle clamp stands about 3 cm: DESTACO 2027-UR, 33.5 mm under
+# its arm, rocheclamp.com), their nearest side 3-7 cm from the hole's axis and beyond the tool's reach
+# (tool_reach, with OBJECT_GAP to spare); a metal or plastic colour, or any hue as the colour family's boards.
+OBJECT_SIDE, OBJECT_TALL, OBJECT_RING, OBJECTS_PER_SCENE = (0.010, 0.040), (0.005, 0.030), (0.030, 0.070), (1, 4)
+OBJECT_GAP, OBJECT_VALUE = 0.002, (0.15, 0.9)
+# How near the axis the held gear's tips come at 20 mm of error (diagonal), as BUMP_R_MAX is the peg's rim
+GEAR_REACH = BUMP_R_MAX - PEG_RADIUS + GEAR_R_TIP
+# What the part touches: steel on steel slides at 0.40-0.70 dry and 0.10 lubricated (pickedshares.com's table of
+# static and sliding friction values); clearances from a press-near fit to a loose one (ours); a board set down
+# up to 1 degree off level (ours). Bullet multiplies the two bodies' coefficients; the tool keeps TOOL_FRICTION.
+TOUCH_FRICTION, TOUCH_CLEARANCE, TOUCH_TILT = (0.10, 0.70), (0.05e-3, 0.3e-3), np.radians(1.0)
+TOOL_FRICTION, BOARD_FRICTION = 0.5, 0.3   # URDF's default (tool, shaft) and the other bodies': peg on board 0.15
 
 
 def family_context(family, seed, task="peg"):
-    """One scene of `family` (FAMILIES), drawn from `seed`: the same seed gives the same scene. Parts lie on
-    the board beyond the tool's reach (at every error up to 20 mm the peg's rim, BUMP_R_MAX, or the held gear,
-    which meets nothing below the shaft's top until aligned), so a family changes what the camera sees, not
-    what the tool touches; at large errors some of them lie inside the task ROI."""
+    """One scene of `family` (FAMILIES), drawn from `seed`: the same seed gives the same scene. Parts and objects
+    lie on the board beyond the tool's reach (tool_reach: at every error up to 20 mm the peg's rim, BUMP_R_MAX,
+    or the held gear), so those families change what the camera sees, not what the tool touches; at large errors
+    some of them lie inside the task ROI, and objects can hide part of the board. The touch family changes only
+    what the part touches: the friction, the clearance and the board's tilt."""
     if family not in FAMILIES:
         raise ValueError(f"unknown family {family!r} ({', '.join(FAMILIES)})")
-    rng = np.random.default_rng([seed, FAMILIES.index(family)])
-    kinds = FAMILIES[:-1] if family == "mixed" else (family,)
+    rng = np.random.default_rng([seed, FAMILY_KEYS.index(family)])
+    kinds = SEEN if family == "mixed" else (family,)
     c = {}
     if "place" in kinds:
         c.update(_draw_place(rng))
@@ -235,6 +258,12 @@ def family_context(family, seed, task="peg"):
         c["table_rgba"], c["board_rgba"] = _draw_colour(rng, TABLE_VALUE), _draw_colour(rng, BOARD_VALUE)
     if "parts" in kinds:
         c["objects"], c["on_board"] = _draw_parts(rng, task), True
+    if "objects" in kinds:
+        c["objects"], c["on_board"] = _draw_objects(rng, task, c.get("objects", ())), True
+    if "touch" in kinds:
+        a, t = rng.uniform(0, 2 * np.pi), rng.uniform(0, TOUCH_TILT)       # tilted by t about a horizontal axis
+        c.update(friction=round(rng.uniform(*TOUCH_FRICTION), 3), clearance=round(rng.uniform(*TOUCH_CLEARANCE), 7),
+                 tilt=_floats([t * np.cos(a), t * np.sin(a)], 5))
     return Context(**c)
 
 
@@ -287,6 +316,37 @@ def _draw_parts(rng, task):
     return tuple(out)
 
 
+def tool_reach(task, top):
+    """How near the hole's (shaft's) axis the tool comes, m, at errors up to 20 mm, over a thing `top` m tall on
+    the board: the peg's rim at every height (above it the sensor, 35 mm across, and the camera pass over 3 cm at
+    full insertion); the held gear's tips over what stands as high as the shaft's top (GEAR_REACH), below it
+    only over the shaft (the gear meets nothing lower until aligned)."""
+    if task == "peg":
+        return BUMP_R_MAX
+    return GEAR_REACH if top > SHAFT_HEIGHT - OBJECT_GAP else GEAR_R_TIP
+
+
+def _draw_objects(rng, task, others=()):
+    """OBJECTS_PER_SCENE workbench objects (boxes, the board's frame) on the board, beyond the tool's reach, off
+    the mating gear and clear of `others` (the scene's parts), added to them."""
+    out = list(others)
+    n = len(out) + rng.integers(OBJECTS_PER_SCENE[0], OBJECTS_PER_SCENE[1] + 1)
+    while len(out) < n:
+        he = (*(rng.uniform(*OBJECT_SIDE, 2) / 2), rng.uniform(*OBJECT_TALL) / 2)
+        xy = rng.uniform(-BOARD_HALF + np.array(he[:2]), BOARD_HALF - np.array(he[:2]))
+        near = np.hypot(*np.maximum(np.abs(xy) - he[:2], 0.0))              # the axis to the box's nearest side
+        if not max(OBJECT_RING[0], tool_reach(task, 2 * he[2]) + OBJECT_GAP) <= near <= OBJECT_RING[1]:
+            continue
+        mating = np.hypot(*np.maximum(np.abs(xy - (GEAR_CENTRES, 0.0)) - he[:2], 0))     # the mating gear's axis to it
+        if task == "gear" and mating < GEAR_R_TIP + OBJECT_GAP:
+            continue
+        if any(np.all(np.abs(xy - o[1]) < np.add(he[:2], o[0][:2]) + OBJECT_GAP) for o in out):
+            continue
+        rgba = PART_COLOURS[rng.integers(len(PART_COLOURS))] if rng.random() < 0.5 else _draw_colour(rng, OBJECT_VALUE)
+        out.append((_floats(he, 4), _floats(xy, 4), rgba))
+    return tuple(out)
+
+
 def held_out_family(name):
     """The family of --context FAMILY:test (a held-out scene each episode, the env's to draw), else None."""
     family, _, which = name.partition(":")
@@ -308,10 +368,15 @@ def context_of(name, task="peg"):
 def context_key(name, task="peg"):
     """What --context `name` stands for, as text: a cache's key (a context or a family redefined is evaluated again)."""
     if held_out_family(name):
+        objects = (OBJECT_SIDE, OBJECT_TALL, OBJECT_RING, OBJECTS_PER_SCENE, OBJECT_GAP, OBJECT_VALUE, GEAR_REACH)
+        added = {"objects": objects, "mixed": objects,             # the older families' keys stay as they were
+                 "touch": (TOUCH_FRICTION, TOUCH_CLEARANCE, TOUCH_TILT, TOOL_FRICTION)}
         return repr((name, task, FAMILY_TEST_SEED0, PLACE_RING, PLACE_X, PLACE_Y, PLACE_YAW, LIGHT_ELEVATION, LIGHT_AMBIENT,
                      LIGHT_DIFFUSE, KELVIN_RGB, TABLE_VALUE, BOARD_VALUE, MAX_SATURATION, LOOSE_PARTS, PART_COLOURS,
-                     PARTS_PER_SCENE, BOARD_HALF))
-    return repr(context_of(name, task))
+                     PARTS_PER_SCENE, BOARD_HALF) + added.get(held_out_family(name), ()))
+    c = context_of(name, task)
+    touch = (c.friction, c.clearance, c.tilt)
+    return repr(c) + (f" touch={touch}" if touch != (None, None, (0.0, 0.0)) else "")
 
 
 class ContextNames:
@@ -527,7 +592,7 @@ class World:
     others would differ from the same episode in a fresh world; after a rebuild it does not."""
 
     def __init__(self, task="peg", clearance=1e-4, gui=False, ft_noise=True, image_noise=True, context=None):
-        self.task, self.clearance, self.gui = task, clearance, gui
+        self.task, self.gui, self.base_clearance = task, gui, clearance
         self.context = context or CONTEXTS["train"]
         self.ft_noise, self.image_noise = ft_noise, image_noise
         self.noise_rng = np.random.default_rng(0)      # the sensors' noise; the env seeds it each episode
@@ -536,7 +601,7 @@ class World:
             raise RuntimeError(f"PyBullet's window cannot open: {display_problem()}")
         with quiet_c_output():
             self.bc = bullet_client.BulletClient(p.GUI if gui else p.DIRECT)
-        self.urdf, self.tip_offset = robot_urdf(task, clearance)      # a temporary file, removed by close
+        self.urdf, self.clearance = None, None
         self._build()
 
     def rebuild(self, ctx=None):
@@ -546,7 +611,12 @@ class World:
         self._build()
 
     def _build(self):
-        bc = self.bc
+        bc, clearance = self.bc, self.context.clearance or self.base_clearance
+        if clearance != self.clearance:          # the robot's file holds the gear's bore: a new one for a new clearance
+            if self.urdf:
+                os.remove(self.urdf)
+            self.urdf, self.tip_offset = robot_urdf(self.task, clearance)      # a temporary file, removed by close
+            self.clearance = clearance
         bc.setTimeStep(1.0 / PHYSICS_HZ)
         # The arm runs gravity-compensated, as a UR's own controller does, so its motors can be
         # torque-limited: full-strength velocity motors pressed 300 N spikes into the board and
@@ -571,10 +641,14 @@ class World:
         self.ft_joint, self.tool_link, self.cam_link = names["tool"], names["tool"], names["camera"]
         self.max_force = JOINT_TORQUE_CAP
         bc.enableJointForceTorqueSensor(self.robot, self.ft_joint, True)
-        bc.changeDynamics(self.robot, self.tool_link, collisionMargin=0.0, lateralFriction=0.3)
+        bc.changeDynamics(self.robot, self.tool_link, collisionMargin=0.0)   # (a lateralFriction given in the same call
+        #                                          is ignored, measured: the tool keeps TOOL_FRICTION)
         for j in self.arm:   # no default motors fighting ours
             bc.setJointMotorControl2(self.robot, j, p.VELOCITY_CONTROL, targetVelocity=0, force=self.max_force[j])
         self.plate, self.parts = self._build_board()
+        if ctx.friction is not None:             # the pair's coefficient: Bullet multiplies the two bodies'
+            for b in self.plate + [b for b, _ in self.parts]:
+                bc.changeDynamics(b, -1, lateralFriction=ctx.friction / TOOL_FRICTION)
         self.objects = self._build_objects()
         # the camera's pose relative to the tip (one rigid body), taken from the arm as loaded: taken from
         # the arm where an episode left it, it varied by 1e-7 m, the ROI by 2e-4 px, and the outcome of
@@ -601,7 +675,7 @@ class World:
             vis = bc.createVisualShapeArray([geom] * len(chunk), **size, rgbaColors=[list(pt[3]) for pt in chunk],
                                             visualFramePositions=pos, visualFrameOrientations=orn)
             body = bc.createMultiBody(0, col, vis, [0, 0, 0])
-            bc.changeDynamics(body, -1, lateralFriction=0.3)
+            bc.changeDynamics(body, -1, lateralFriction=BOARD_FRICTION)
             bodies.append(body)
         return bodies
 
@@ -634,7 +708,7 @@ class World:
         col = bc.createCollisionShape(p.GEOM_CYLINDER, radius=SHAFT_RADIUS, height=SHAFT_HEIGHT)
         vis = bc.createVisualShape(p.GEOM_CYLINDER, radius=SHAFT_RADIUS, length=SHAFT_HEIGHT, rgbaColor=DARK)
         shaft = bc.createMultiBody(0, col, vis, [0, 0, SHAFT_HEIGHT / 2])
-        bc.changeDynamics(shaft, -1, collisionMargin=0.0, lateralFriction=0.3)
+        bc.changeDynamics(shaft, -1, collisionMargin=0.0)      # keeps URDF's 0.5, as the tool (see _build)
         return self._compound(plate), [(b, 0.0) for b in self._compound(parts)] + [(shaft, SHAFT_HEIGHT / 2)]
 
     def _build_objects(self):
@@ -667,12 +741,12 @@ class World:
         if ctx != self.context:
             self.rebuild(ctx)
         yaw = ctx.board_yaw + shift[3]
-        R_b = ctl.rot_z(yaw)
+        R_b = ctl.rot_z(yaw) @ ctl.rotvec_to_matrix(np.array([*ctx.tilt, 0.0]))   # tilted about the axis's top
         top = np.array([ctx.board_xy[0] + shift[0], ctx.board_xy[1] + shift[1], BOARD_THICK + shift[2]])
         q = quat_from_matrix(R_b)
         for body, dz in [(b, 0.0) for b in self.plate] + self.parts:
-            bc.resetBasePositionAndOrientation(body, (top + [0, 0, dz]).tolist(), q)
-        R_g = ctl.rot_z(yaw) @ R_DOWN
+            bc.resetBasePositionAndOrientation(body, (top + R_b @ [0, 0, dz]).tolist(), q)
+        R_g = ctl.rot_z(yaw) @ R_DOWN            # the goal's orientation as the robot knows it: level
         p_g = top + R_b @ self.goal_in_board()
         p_i = top + np.array([0.0, 0.0, self.part_top() + approach])
         self.goal_yaw = yaw

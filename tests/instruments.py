@@ -32,15 +32,16 @@ def probe(world, x_start, x_target, f_d=np.zeros(6), ex=(1e-5, 1e-5, 0.05, 0.02,
     return world.tool_pose(), np.mean(hist[-CONTROL_HZ:], 0), float(np.mean(normal[-CONTROL_HZ:]))
 
 
-def lateral_play(task, clearance, yaws, directions=8, depth=0.010, force=0.2, steps=120):
+def lateral_play(task, clearance, yaws, directions=8, depth=0.010, force=0.2, steps=120, context=CONTEXTS["train"]):
     """The part's lateral play, measured physically: the tool's collision shape alone as a free body
     (1 kg, an inertia that keeps it upright), `depth` into the hole (peg) or onto the shaft (gear), at
     each relative yaw (rad) pushed with `force` N toward each of `directions` directions (no friction)
-    until it rests on the wall. Returns the diametral play (m) per yaw and direction pair, shape
+    until it rests on the wall. A context's own clearance (the touch family's) stands in for `clearance`.
+    Returns the diametral play (m) per yaw and direction pair, shape
     (len(yaws), directions // 2): the travel toward phi plus the travel toward phi + pi."""
-    w = World(task, clearance, ft_noise=False, image_noise=False)
+    w = World(task, clearance, ft_noise=False, image_noise=False, context=context)
     bc = w.bc
-    (p_g, _), _ = w.place(CONTEXTS["train"])
+    (p_g, _), _ = w.place(context)
     bc.removeBody(w.robot)
     walls = [b for b, _ in w.parts] if task == "peg" else [w.parts[-1][0]]     # the hole, or the shaft
     for b, _ in w.parts:
@@ -48,7 +49,7 @@ def lateral_play(task, clearance, yaws, directions=8, depth=0.010, force=0.2, st
             bc.changeDynamics(b, -1, lateralFriction=0.0)
         else:
             bc.removeBody(b)
-    xml, tip = tool_xml(task, clearance)
+    xml, tip = tool_xml(task, w.clearance)
     with tempfile.NamedTemporaryFile("w", suffix=".urdf", delete=False) as f:
         f.write(f'<robot name="part"><link name="tool">{xml}</link></robot>')
     part = bc.loadURDF(f.name)
@@ -71,3 +72,17 @@ def lateral_play(task, clearance, yaws, directions=8, depth=0.010, force=0.2, st
     return travel[:, :directions // 2] + travel[:, directions // 2:]
 
 
+
+
+def sliding_friction(context, speed=0.005):
+    """The coefficient of the peg sliding on the board, measured: the tip pressed on the board's top 45 mm beside
+    the hole (clear of its bumps) by a soft z, dragged along x; |F_x| / |F_z| of the wrist sensor over the last
+    second of the drag."""
+    w = World("peg", 1e-4, ft_noise=False, image_noise=False, context=context)
+    (p_g, R_g), _ = w.place(context)
+    top = p_g[2] + HOLE_DEPTH
+    start = (np.array([p_g[0] - 0.015, p_g[1] + 0.045, top + 0.002]), R_g)
+    target = (np.array([p_g[0] - 0.015 + 6 * speed, p_g[1] + 0.045, top - 0.02]), R_g)
+    _, f, _ = probe(w, start, target, ex=(1e-3, 1e-5, 0.05, 0.02, 0.02, 0.001), seconds=4.0, duration=6.0)
+    w.close()
+    return abs(f[0]) / abs(f[2])

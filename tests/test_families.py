@@ -14,11 +14,13 @@ SEEDS = range(40)
 def test_a_seed_is_one_scene_and_seeds_differ(family):
     scenes = [scene.family_context(family, s) for s in SEEDS]
     assert scenes[0] == scene.family_context(family, 0) and scene.context_of(f"{family}:0") == scenes[0]
-    assert len({repr(c) for c in scenes}) == len(scenes)
-    assert all("np." not in repr(c) for c in scenes)              # plain floats: a context's repr is a cache key
-    field = {"place": "board_xy", "light": "light", "colour": "table_rgba", "parts": "objects"}
+    keys = [scene.context_key(f"{family}:{s}") for s in SEEDS]
+    assert len(set(keys)) == len(scenes) and all("np." not in k for k in keys)     # plain floats: a cache's key
+    field = {"place": "board_xy", "light": "light", "colour": "table_rgba", "parts": "objects", "objects": "objects",
+             "touch": "friction"}
     changed = {k for c in scenes for k in field.values() if getattr(c, k) != getattr(scene.CONTEXTS["train"], k)}
-    assert changed == (set(field.values()) if family == "mixed" else {field[family]})    # one kind, or all together
+    seen = {field[f] for f in scene.SEEN}
+    assert changed == (seen if family == "mixed" else {field[family]})    # one kind, or all the seen ones together
 
 
 def test_held_out_scenes_and_training_scenes_never_meet(monkeypatch):
@@ -60,6 +62,59 @@ def test_parts_lie_on_the_board_beyond_the_tools_reach_and_some_inside_the_task_
         assert 5 <= inside, inside
 
 
+def _hits_box(a, b, centre, he):
+    """Whether the segment a -> b passes through the box (centre, half extents he), all in one frame (slab test)."""
+    d, lo, hi = b - a, 0.0, 1.0
+    for k in range(3):
+        if abs(d[k]) < 1e-12:
+            if abs(a[k] - centre[k]) > he[k]:
+                return False
+            continue
+        t0, t1 = sorted(((centre[k] - he[k] - a[k]) / d[k], (centre[k] + he[k] - a[k]) / d[k]))
+        lo, hi = max(lo, t0), min(hi, t1)
+    return lo <= hi
+
+
+@pytest.mark.parametrize("task", ["peg", "gear"])
+def test_workbench_objects_stand_on_the_board_beyond_reach_some_in_the_roi_some_hiding_the_board(task):
+    with sim.AssemblyEnv(task, image=False) as env:
+        env.reset(seed=0, options={"error": np.zeros(4)})
+        w, R_b = env.world, env.x_g[1] @ sim.R_DOWN
+        top = env.x_g[0] - R_b @ w.goal_in_board()                              # the board's top at the axis
+        u0, v0, u1, v1 = env.roi
+        errors = [np.array([sx, sy]) * sim.E_R_FINAL for sx in (-1, 0, 1) for sy in (-1, 0, 1)]
+        cams = [R_b.T @ (env.x_i[0] + R_b @ np.array([*e, dz]) + env.x_i[1] @ w.cam_rel[0] - top)
+                for e in errors for dz in (0.0, -scene.APPROACH)]          # at X_i, and the tip down on the part
+        board = [np.array([r * np.cos(a), r * np.sin(a), 0.0]) for r in (0.0, 0.01, 0.02, 0.03, 0.04)
+                 for a in np.arange(8) * np.pi / 4]
+        inside = hiding = 0
+        for s in SEEDS:
+            objects = scene.family_context("objects", s, task).objects
+            assert scene.OBJECTS_PER_SCENE[0] <= len(objects) <= scene.OBJECTS_PER_SCENE[1]
+            for i, (he, xy, _) in enumerate(objects):
+                he, xy = np.array(he), np.array(xy)
+                assert np.all((scene.OBJECT_SIDE[0] - 1e-4 <= 2 * he[:2]) & (2 * he[:2] <= scene.OBJECT_SIDE[1] + 1e-4))
+                assert scene.OBJECT_TALL[0] - 1e-4 <= 2 * he[2] <= scene.OBJECT_TALL[1] + 1e-4
+                assert np.all(np.abs(xy) + he[:2] <= scene.BOARD_HALF + 1e-4)                      # whole on the board
+                near = np.hypot(*np.maximum(np.abs(xy) - he[:2], 0))
+                reach = scene.BUMP_R_MAX if task == "peg" else (
+                    scene.GEAR_R_TIP + sim.E_R_FINAL * np.sqrt(2) if 2 * he[2] > scene.SHAFT_HEIGHT - 0.002
+                    else scene.GEAR_R_TIP)
+                assert scene.OBJECT_RING[0] - 1e-4 <= near <= scene.OBJECT_RING[1] + 1e-4 and near >= reach
+                if task == "gear":
+                    assert np.hypot(*np.maximum(np.abs(xy - (scene.GEAR_CENTRES, 0)) - he[:2], 0)) >= scene.GEAR_R_TIP
+                assert not any(np.all(np.abs(xy - o[1]) < he[:2] + o[0][:2]) for o in objects[:i])   # no overlaps
+                e = np.clip(xy, -sim.E_R_FINAL, sim.E_R_FINAL)          # its top seen with the tool 20 mm off toward it
+                cam_p = env.x_i[0] + R_b @ np.array([*e, 0.0]) + env.x_i[1] @ w.cam_rel[0]
+                uv = scene.project((top + R_b @ np.array([*xy, 2 * he[2]]))[None], w.camera_matrices(
+                    (cam_p, env.x_i[1] @ w.cam_rel[1])), scene.full_projection())[0]
+                inside += u0 <= uv[0] <= u1 and v0 <= uv[1] <= v1
+            # some stand between the camera and the board within 4 cm of the axis, at some error and height
+            hiding += any(_hits_box(c, b, np.array([*xy, he[2]]), np.array(he))
+                          for c in cams for b in board for he, xy, _ in objects)
+        assert inside >= 5 and hiding >= 3, (inside, hiding)
+
+
 def test_other_places_stand_clear_of_the_workcell_within_reach_of_the_arm():
     t = np.array(scene.CONTEXTS["train"].board_xy)
     for s in SEEDS:
@@ -87,3 +142,39 @@ def test_the_hand_designed_policy_inserts_in_a_held_out_mixed_scene():
     with sim.AssemblyEnv("peg", "mixed:test") as env:
         success, info, _ = sim.run_episode(env, lambda obs: np.zeros(6), seed=3)
         assert success and env.world.context.objects and env.world.context.light
+
+
+def test_touch_scenes_within_their_ranges_and_the_world_made_of_them():
+    for s in SEEDS:
+        c = scene.family_context("touch", s)
+        assert scene.TOUCH_FRICTION[0] <= c.friction <= scene.TOUCH_FRICTION[1]
+        assert scene.TOUCH_CLEARANCE[0] <= c.clearance <= scene.TOUCH_CLEARANCE[1]
+        assert np.hypot(*c.tilt) <= scene.TOUCH_TILT + 1e-5
+        assert c.board_xy == scene.CONTEXTS["train"].board_xy and not c.objects   # it changes only what is touched
+    assert scene.context_key("touch:3") != scene.context_key("train")
+    with sim.AssemblyEnv("gear", "touch:test", image=False) as env:      # each episode's own bore and friction
+        seen = set()
+        for seed in range(2):
+            env.reset(seed=seed)
+            w, c = env.world, env.world.context
+            assert c.friction is not None and w.clearance == c.clearance
+            assert w.bc.getDynamicsInfo(w.plate[0], -1)[1] == pytest.approx(c.friction / scene.TOOL_FRICTION)
+            seen.add(c.clearance)
+        assert len(seen) == 2
+
+
+def test_the_touch_familys_friction_clearance_and_tilt_are_what_the_part_meets():
+    import instruments
+    for mu in (0.15, 0.6):               # the training world's pair (0.15, measured), and a dry one
+        ctx = scene.Context(friction=mu) if mu != 0.15 else scene.CONTEXTS["train"]
+        assert instruments.sliding_friction(ctx) == pytest.approx(mu, rel=0.05)
+    play = instruments.lateral_play("peg", 1e-4, [0.0], directions=4, context=scene.Context(clearance=0.25e-3))
+    assert np.all(np.abs(play - 0.25e-3) < 0.02e-3), play
+    t = np.radians(1.0)
+    w = scene.World("peg", context=scene.Context(tilt=(t, 0.0)))
+    (p_g, _), (p_i, _) = w.place(w.context)
+    ring = w.bc.getBasePositionAndOrientation(w.parts[0][0])[1]
+    w.close()
+    # the hole's bottom lies off the vertical through its top by its depth x sin(t), toward +y for a tilt about +x
+    np.testing.assert_allclose(p_g[:2] - p_i[:2], [0.0, scene.HOLE_DEPTH * np.sin(t)], atol=1e-9)
+    np.testing.assert_allclose(scene.matrix_from_quat(ring), sim.ctl.rotvec_to_matrix(np.array([t, 0, 0])), atol=1e-9)

@@ -87,3 +87,24 @@ def test_a_planned_run_is_counted_for_its_own_experiment_alone():
     assert sum(report.is_planned(run, p) for p in plan("gear-curriculum")) == 0
     unfinished = {**run, "m": {"episode": list(range(1, 150))}}
     assert sum(report.is_planned(unfinished, p) for p in plan("gear-roi")) == 0
+
+
+def test_the_objects_study_shows_the_policy_the_scene_without_its_objects_and_changes_nothing_else():
+    import objects
+    import scene
+    import sim
+    block = scene.Context(objects=(((0.01, 0.01, 0.012), (0.045, 0.0), (0.8, 0.1, 0.1, 1)),), on_board=True)
+    images = {}
+    for name, ctx, twin in (("plain", block, False), ("twin", block, True), ("none", scene.Context(), False)):
+        with sim.AssemblyEnv("peg", e_r=0.02) as env:
+            env._episode_context = lambda c=ctx: c                     # this episode's scene
+            last = {}
+            if twin:
+                objects.twin_renders(env, blind=False, last=last)
+            obs, _ = env.reset(seed=4)
+            obs2, *_ = env.step(np.zeros(6))
+            images[name] = obs2["image"]
+            images["blind"] = last.get("blind", images.get("blind"))
+    np.testing.assert_array_equal(images["twin"], images["plain"])      # what the policy sees, bit for bit
+    np.testing.assert_array_equal(images["blind"], images["none"])      # the same scene, the same noise, no objects
+    assert (images["plain"] != images["none"]).mean() > 0.01            # and the block is in view
