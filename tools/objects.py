@@ -2,21 +2,21 @@
 what its task ROI shows there, whether its action follows the objects, and whether the hand-designed part,
 which sees no image, is disturbed by them.
 
-    python tools/objects.py "results/robust/peg-*-imgnorm-image-s*" --out results/objects --docs docs
+    python tools/objects.py "results/robust/peg-*-imgnorm-image-s*"                 # -> results/objects/family/
+    python tools/objects.py "results/robust/peg-*-imgnorm-image-s*" --scenes issue  # the issue's blocks
+    python tools/objects.py --docs docs                  # docs/OBJECTS.md and its figures from results/objects
 
-In held-out scenes of the `objects` family (scene.FAMILIES) at the largest error (20 mm), each run's policy
-meets the same episodes (evaluate's held-out seeds, the same scenes) three ways:
+In held-out scenes at the largest error (20 mm), each run's policy meets the same episodes (evaluate's held-out
+seeds, the same scenes) four ways:
 - seen: as evaluation runs it; the policy sees the objects;
 - blind: the physics holds the objects, but each image the policy gets is rendered with them taken away
   (the same pose, the same sensor noise): what the objects do through the image alone;
 - hand: the hand-designed part alone (a zero residual), which sees no image: what the objects do to it they
-  do by touch; hand-train: the same in the training scene (the same errors), where its end pose should be the same.
-Per step of `seen`: how far the action moves when the objects leave the image (|a - a_blind| over the three
-force actions), the share of the ROI's pixels the objects change (by more than CHANGED grey levels), and any
-contact between the tool and the objects. Writes <out>/<run name>.json a run (its episodes, per condition),
-and with --docs <docs>/OBJECTS.md (the table, over seeds: mean with a 95 % bootstrap interval) and
-<docs>/fig-objects-<task>.png (the first image of a few episodes, the same without the objects, and the policy's
-saliency there).
+  do by touch; hand-away: the same with the objects moved 5 m away (the same bodies in the solver, out of reach).
+Per step of `seen`: how far the action moves when the objects leave the image (the norm of a - a_blind over
+the three force actions), the share of the ROI's pixels the objects change (by more than CHANGED grey levels),
+and any contact between the tool and the objects. The scenes: the `objects` family's held-out ones, or
+(--scenes issue) the kind of scene issue 53's table found the peg failing in.
 """
 import contextlib
 import json
@@ -33,13 +33,16 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__)))) 
 import evaluate  # noqa: E402
 import figures  # noqa: E402
 import report  # noqa: E402
+import scene  # noqa: E402
 import sim  # noqa: E402
 import tacrl  # noqa: E402
 from tacrl import ArgError  # noqa: E402
 
 CONTEXT, ERROR_MM = "objects:test", 20.0
+# --scenes issue: blocks a scene, their side, height and centre's distance from the axis (m)
+ISSUE_BLOCKS = (2, 4), (0.02, 0.03), (0.01, 0.02), (0.03, 0.06)
 CHANGED = 8                  # grey levels: a pixel the objects change (the shot noise is drawn alike in both images)
-CONDITIONS = ("seen", "blind", "hand", "hand-train")
+CONDITIONS = ("seen", "blind", "hand", "hand-away")
 SHOWN = 4                    # episodes the figure shows
 
 
@@ -75,22 +78,59 @@ def twin_renders(env, blind, last):
     w.render_roi = both
 
 
+def issue_scene(rng):
+    """A scene of the kind issue 53's table found the peg failing in: 2-4 blocks 2-3 cm across and 1-2 cm tall,
+    their centres 3-6 cm from the hole, on the board, drawn from rng (within the tool's reach, unlike the family)."""
+    n, side, tall, ring = ISSUE_BLOCKS
+    out = []
+    for _ in range(rng.integers(n[0], n[1] + 1)):
+        while True:
+            he = (*(rng.uniform(*side, 2) / 2), rng.uniform(*tall) / 2)
+            a, d = rng.uniform(0, 2 * np.pi), rng.uniform(*ring)
+            xy = np.array([d * np.cos(a), d * np.sin(a)])
+            if np.all(np.abs(xy) + he[:2] <= scene.BOARD_HALF) and not any(
+                    np.all(np.abs(xy - o[1]) < np.add(he[:2], o[0][:2])) for o in out):
+                break
+        out.append((tuple(round(float(v), 4) for v in he), tuple(round(float(v), 4) for v in xy),
+                    scene.PART_COLOURS[rng.integers(len(scene.PART_COLOURS))]))
+    return scene.Context(objects=tuple(out), on_board=True)
+
+
+def move_away_on_rebuild(world):
+    """From now on the world's objects stand 5 m under the table from each rebuild (each episode) on."""
+    rebuild = world.rebuild
+
+    def rebuild_away(ctx=None):
+        rebuild(ctx)
+        for b in world.objects:
+            world.bc.resetBasePositionAndOrientation(b, [0.0, 0.0, -5.0], [0.0, 0.0, 0.0, 1.0])
+    world.rebuild = rebuild_away
+
+
 def touching(world):
     """Whether the robot touches any of the context's objects now."""
     return any(world.bc.getContactPoints(bodyA=world.robot, bodyB=b) for b in world.objects)
 
 
-def study_run(run, episodes, log=print):
-    """The three conditions' episodes of one run: {condition: [per episode {success, touched, ...}]} and the
-    first steps' images of `seen` for the figure."""
+def episode_env(run, pi, scenes):
+    """The env a run's policy is studied in: evaluation's, its scenes those of `scenes` (family or issue)."""
+    env = evaluate.eval_env(run["cfg"]["task"], pi, context=CONTEXT, roi=run["cfg"]["roi"], e_r_mm=ERROR_MM)
+    if scenes == "issue":                                   # a scene each episode, from the episode's seed
+        env._episode_context = lambda: issue_scene(env.scene_rng)
+    return env
+
+
+def study_run(run, episodes, scenes="family", log=print):
+    """The conditions' episodes of one run: {condition: [per episode {success, touched, ...}]}."""
     pi = report.load_policy(run)
     seed = evaluate.EVAL_SEED + run["cfg"]["seed"]
-    out, shown = {c: [] for c in CONDITIONS}, []
+    out = {c: [] for c in CONDITIONS}
     for cond in CONDITIONS:
-        ctx = "train" if cond == "hand-train" else CONTEXT
-        with evaluate.eval_env(run["cfg"]["task"], pi, context=ctx, roi=run["cfg"]["roi"], e_r_mm=ERROR_MM) as env:
+        with episode_env(run, pi, scenes) as env:
             last = {}
             twin_renders(env, cond == "blind", last)
+            if cond == "hand-away":
+                move_away_on_rebuild(env.world)
             for k in range(episodes):
                 ep = {"touched": False, "shift": [], "changed": []}
 
@@ -102,19 +142,28 @@ def study_run(run, episodes, log=print):
                         a_blind = pi({**obs, "image": last["blind"]})
                         ep["shift"].append(float(np.linalg.norm(a[:3] - a_blind[:3])))
                         ep["changed"].append(float(np.mean(np.abs(last["seen"].astype(int) - last["blind"]) > CHANGED)))
-                        if len(ep["shift"]) == 1 and len(shown) < SHOWN:
-                            shown.append({"seen": last["seen"].copy(), "blind": last["blind"].copy(),
-                                          "saliency": report.saliency(pi, obs), "episode": k})
                     return a
 
                 def on_step(obs, r, info):
                     ep["touched"] |= touching(env.world)
                 term, info, _ = sim.run_episode(env, act, seed=evaluate.episode_seed(seed, k), on_step=on_step)
-                ep.update(success=bool(term), offset=info["goal_offset"].tolist(), steps=len(ep["shift"]) if cond == "seen" else None,
+                ep.update(success=bool(term), offset=info["goal_offset"].tolist(),
                           objects=len(env.world.context.objects))
                 out[cond].append(ep)
             log(f"{run['dir']}: {cond} SR {np.mean([e['success'] for e in out[cond]]):.2f}")
-    return out, shown
+    return out
+
+
+def first_images(run, scenes, k=SHOWN):
+    """The first image of episodes 0..k-1 of a run's study, the same without the objects, and the saliency."""
+    pi, seed, shown = report.load_policy(run), evaluate.EVAL_SEED + run["cfg"]["seed"], []
+    with episode_env(run, pi, scenes) as env:
+        last = {}
+        twin_renders(env, False, last)
+        for ep in range(k):
+            obs, _ = env.reset(seed=evaluate.episode_seed(seed, ep))
+            shown.append({"seen": last["seen"], "blind": last["blind"], "saliency": report.saliency(pi, obs)})
+    return shown
 
 
 def summary(out):
@@ -126,7 +175,7 @@ def summary(out):
             "shift_first": float(np.mean([e["shift"][0] for e in seen])),
             "changed_first": float(np.mean([e["changed"][0] for e in seen])),
             "hand_moved_mm": 1000 * float(max(np.abs(np.subtract(a["offset"][:3], b["offset"][:3])).max()
-                                             for a, b in zip(out["hand"], out["hand-train"]))),
+                                             for a, b in zip(out["hand"], out["hand-away"]))),
             "episodes": len(seen)}
 
 
@@ -135,38 +184,51 @@ def ci(values):
     return f"{mean[0]:.2f} ({lo[0]:.2f}-{hi[0]:.2f})"
 
 
-def write_docs(results, shown, docs, log=print):
-    """docs/OBJECTS.md's tables, a task each, from the runs' summaries, and fig-objects-<task>.png."""
+SCENES = {"family": "held-out scenes of the `objects` family (scene.py)",
+          "issue": "scenes of the kind issue 53 found the peg failing in: 2-4 blocks 2-3 cm across and 1-2 cm tall, "
+                   "their centres 3-6 cm from the hole (within the tool's reach)"}
+
+
+def write_docs(out, docs, log=print):
+    """docs/OBJECTS.md's tables, one for each kind of scenes and task, from the JSONs under `out`, and a figure each."""
+    results = [report.read_json(os.path.join(out, sc, f)) for sc in SCENES if os.path.isdir(os.path.join(out, sc))
+               for f in sorted(os.listdir(os.path.join(out, sc))) if f.endswith(".json")]
+    if not results:
+        raise ArgError(f"{out}: no study here (run tools/objects.py RUNS first)")
     md = ["# Why the peg fails among workbench objects (issue 53)", "",
-          f"Made by `python tools/objects.py` (world {sim.WORLD}). Each run meets the same held-out scenes of the "
-          f"`objects` family at {ERROR_MM:g} mm (evaluation's seeds) three ways: seeing the objects, blind to them "
-          "(the physics holds them, the policy's images are rendered without them), and the hand-designed part alone. "
-          "Each cell: the mean over the runs (seeds) with a 95 % bootstrap interval over them, then each run's."]
-    for task in sorted({r["task"] for r in results}):
-        mine = [r for r in results if r["task"] == task]
-        rows, n = [r["summary"] for r in mine], mine[0]["summary"]["episodes"]
-        md += ["", f"## {task}: {len(mine)} runs, {n} episodes each and condition", "",
-               "Runs: " + ", ".join(f"`{os.path.basename(os.path.normpath(r['dir']))}`" for r in mine) + ".", "",
+          f"Made by `python tools/objects.py --docs docs` from `{out}` (world {sim.WORLD}). Each run meets the same "
+          f"held-out scenes at {ERROR_MM:g} mm (evaluation's seeds) four ways: seeing the objects (seen); blind to "
+          "them (the physics holds them, each image the policy gets is rendered without them, with the same sensor "
+          "noise); "
+          "the hand-designed part alone, which sees no image (hand); and the same with the objects moved 5 m away, "
+          "the same bodies in the solver but out of reach (hand-away). Each cell: the mean over the runs (seeds) with a 95 % bootstrap interval over them, "
+          "then each run's."]
+    for sc, task in sorted({(r["scenes"], r["task"]) for r in results}, key=lambda k: (list(SCENES).index(k[0]), k[1])):
+        mine = [r for r in results if (r["scenes"], r["task"]) == (sc, task)]
+        rows = [r["summary"] for r in mine]
+        md += ["", f"## {task}, {SCENES[sc]}", "",
+               f"{len(mine)} runs, {rows[0]['episodes']} episodes each a condition: "
+               + ", ".join(f"`{os.path.basename(os.path.normpath(r['dir']))}`" for r in mine) + ".", "",
                "| measure | mean over runs (95 % interval) | per run |", "|---|---|---|"]
         line = lambda name, key, f="{:.2f}": md.append(  # noqa: E731
             f"| {name} | {ci([r[key] for r in rows])} | {' / '.join(f.format(r[key]) for r in rows)} |")
         line("SR, the policy seeing the objects", "sr_seen")
         line("SR, the same episodes, the objects out of the policy's images (blind)", "sr_blind")
         line("SR, the hand-designed part alone (zero residual; it sees no image)", "sr_hand")
-        line("SR, the hand-designed part alone in the training scene, the same errors", "sr_hand-train")
-        line("the hand-designed part's end pose, objects against training scene: largest difference, mm",
+        line("SR, the hand-designed part alone, the objects 5 m away", "sr_hand-away")
+        line("the hand-designed part's end pose, objects in place against 5 m away: largest difference, mm",
              "hand_moved_mm", "{:.3f}")
         line("share of the ROI's pixels the objects change, first image", "changed_first")
         line("action shift, the norm of a - a_blind (force part, at most 3.46), first step", "shift_first")
         line("action shift, every step", "shift")
         for c in CONDITIONS[:3]:
             line(f"episodes in which the tool touched an object ({c})", f"touched_{c}", "{:.0f}")
-        fig = f"fig-objects-{task}.png"
-        md += ["", f"![{task}: the first image of a few episodes with the objects, without them, and the saliency]({fig})",
-               "", f"*{task}, the first run: its first image in {len(shown[task])} episodes (the task ROI at the "
-               "start, 80 x 80), the same without the objects, and the saliency of the lateral force actions there "
-               "(|dF_x/dI| + |dF_y/dI|).*"]
-        plot_shown(shown[task], os.path.join(docs, fig))
+        fig = f"fig-objects-{sc}-{task}.png"
+        md += ["", f"![{task}: first images with the objects, without them, and the saliency]({fig})", "",
+               f"*{task}, `{os.path.basename(os.path.normpath(mine[0]['dir']))}`: the first image of its first {SHOWN} "
+               "episodes (the task ROI at the start, 80 x 80), the same without the objects, and the saliency of the "
+               "lateral force actions there (|dF_x/dI| + |dF_y/dI|).*"]
+        plot_shown(first_images(report.load_run(mine[0]["dir"]), sc), os.path.join(docs, fig))
     with open(os.path.join(docs, "OBJECTS.md"), "w") as f:
         f.write("\n".join(md) + "\n")
     log(f"wrote {docs}/OBJECTS.md and its figures")
@@ -179,7 +241,7 @@ def plot_shown(shown, path):
         for i, (key, cmap) in enumerate((("seen", "gray"), ("blind", "gray"), ("saliency", "hot"))):
             axs[i][j].imshow(s[key], cmap=cmap, **({"vmin": 0, "vmax": 255} if cmap == "gray" else {}))
             axs[i][j].set_xticks([]), axs[i][j].set_yticks([])
-        axs[0][j].set_title(f"episode {s['episode']}", fontsize=9)
+        axs[0][j].set_title(f"episode {j}", fontsize=9)
     for i, name in enumerate(("with objects", "without", "saliency")):
         axs[i][0].set_ylabel(name)
     fig.tight_layout()
@@ -189,35 +251,40 @@ def plot_shown(shown, path):
 
 def main(argv=None):
     ap = tacrl.Parser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("runs", help="comma-separated glob patterns of run directories (with policy.pt)")
+    ap.add_argument("runs", nargs="?", default="", help="comma-separated glob patterns of run directories (with "
+                    "policy.pt) to study")
     ap.add_argument("--episodes", type=int, default=20, help="held-out episodes a run and condition (default: 20)")
-    ap.add_argument("--out", default="results/objects", help="folder for a JSON a run (default: results/objects)")
-    ap.add_argument("--docs", default="", help="also write OBJECTS.md and fig-objects.png into this folder")
+    ap.add_argument("--scenes", choices=tuple(SCENES), default="family", help="the objects family's held-out "
+                    "scenes (default), or the issue's kind: 2-4 blocks 2-3 cm, 1-2 cm tall, 3-6 cm from the hole")
+    ap.add_argument("--out", default="results/objects", help="the studies' folder: <out>/<scenes>/<run>.json "
+                    "(default: results/objects)")
+    ap.add_argument("--docs", default="", help="write OBJECTS.md and its figures into this folder from --out")
     a = ap.parse_args(argv)
     if a.episodes < 1:
         raise ArgError(f"--episodes must be at least 1, not {a.episodes}")
-    runs = [report.load_run(d) for d in report.match_runs(a.runs) if os.path.exists(os.path.join(d, "policy.pt"))]
-    if not runs:
+    if not a.runs and not a.docs:
+        raise ArgError("name runs to study, or --docs DIR to write the page from the studies in --out")
+    tacrl.use_cpu(tacrl.Config(device="cpu"))
+    runs = [report.load_run(d) for d in report.match_runs(a.runs) if os.path.exists(os.path.join(d, "policy.pt"))] \
+        if a.runs else []
+    if a.runs and not runs:
         raise ArgError(f"{a.runs!r}: no run with a policy.pt")
     other = [r["dir"] for r in runs if (r["eval"] or {}).get("world") != sim.WORLD]
     if other:
         raise ArgError(f"{other[0]}: not trained in world {sim.WORLD} (its eval.json says otherwise)")
-    for d in [a.out] + ([a.docs] if a.docs else []):
+    folder = os.path.join(a.out, a.scenes)
+    for d in ([folder] if runs else []) + ([a.docs] if a.docs else []):
         os.makedirs(d, exist_ok=True)
         tacrl.check_dir_writable(d, "the output folder")
-    tacrl.use_cpu(tacrl.Config(device="cpu"))
-    results, shown = [], {}
     for run in runs:
-        out, first = study_run(run, a.episodes)
-        shown.setdefault(run["cfg"]["task"], first)
-        res = {"dir": run["dir"], "task": run["cfg"]["task"], "world": sim.WORLD, "context": CONTEXT, "error_mm": ERROR_MM, "summary": summary(out),
-               "episodes": out}
-        with open(os.path.join(a.out, os.path.basename(os.path.normpath(run["dir"])) + ".json"), "w") as f:
+        out = study_run(run, a.episodes, a.scenes)
+        res = {"dir": run["dir"], "task": run["cfg"]["task"], "world": sim.WORLD, "scenes": a.scenes,
+               "error_mm": ERROR_MM, "summary": summary(out), "episodes": out}
+        with open(os.path.join(folder, os.path.basename(os.path.normpath(run["dir"])) + ".json"), "w") as f:
             json.dump(res, f, indent=1)
         print(f"{run['dir']}: {json.dumps(res['summary'])}", flush=True)
-        results.append(res)
     if a.docs:
-        write_docs(results, shown, a.docs)
+        write_docs(a.out, a.docs)
 
 
 if __name__ == "__main__":

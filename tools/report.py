@@ -582,7 +582,11 @@ FAMILY_WHAT = {"place": "the board 12-32 cm from training's place, turned up to 
                "colour": "table and board of any hue, saturation up to 0.6, value 0.12-0.9 (table), 0.25-0.95 (board)",
                "parts": "1-4 small parts (nut, screw, washer, block, tie end) on the board beyond the tool's reach, "
                         "some inside the task ROI at large errors",
-               "mixed": "all four together"}
+               "objects": "1-4 workbench objects (fixtures, clamps, blocks) 1-4 cm across and 0.5-3 cm tall on the board, "
+                          "3-7 cm from the axis beyond the tool's reach, some in the task ROI, some hiding part of the board",
+               "touch": "the part's sliding friction 0.10-0.70 (oiled to dry steel), clearance 0.05-0.3 mm, the board "
+                        "tilted up to 1 deg",
+               "mixed": "the five seen families together (place, light, colour, parts, objects)"}
 GOAL_SR15, GOAL_DROP20 = 0.9, 0.1      # issue 22's goal: SR >= 0.9 at 15 mm, within 0.1 of training's at 20 mm
 
 
