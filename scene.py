@@ -318,8 +318,8 @@ def _draw_parts(rng, task):
 
 def tool_reach(task, top):
     """How near the hole's (shaft's) axis the tool comes, m, at errors up to 20 mm, over a thing `top` m tall on
-    the board: the peg's rim at every height (above it the sensor, 35 mm across, and the camera pass over 3 cm at
-    full insertion); the held gear's tips over what stands as high as the shaft's top (GEAR_REACH), below it
+    the board: the peg's rim at every height (beyond it the sensor, 35 mm in radius, and the camera stay over 3 cm
+    even at full insertion); the held gear's tips over what stands as high as the shaft's top (GEAR_REACH), below it
     only over the shaft (the gear meets nothing lower until aligned)."""
     if task == "peg":
         return BUMP_R_MAX
