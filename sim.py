@@ -23,9 +23,9 @@ import cv2
 import numpy as np
 
 import control as ctl
-from scene import (APPROACH, CAM_FULL, CLEAR, CONTEXTS, CONTROL_HZ, CONTROL_PER_POLICY, FAMILIES, FAMILY_TEST_SEED0, FT_RANGE,
-                   IMG, POLICY_HZ, R_DOWN, World, context_of, family_context, full_projection, held_out_family, project,
-                   task_features, to_world)
+from contexts import FAMILIES, FAMILY_TEST_SEED0, context_of, family_context, held_out_family
+from scene import (APPROACH, CAM_FULL, CLEAR, CONTROL_HZ, CONTROL_PER_POLICY, FT_RANGE, IMG, POLICY_HZ, R_DOWN,
+                   World, full_projection, project, task_features, to_world)
 
 try:                   # optional: the env is a gymnasium.Env where gymnasium is installed
     import gymnasium
@@ -180,9 +180,9 @@ def hole_keypoint(img):
 class AssemblyEnv(gymnasium.Env if gymnasium else object):
     """Residual-RL assembly env (Algorithm 1's 'interact with environment').
 
-    task: 'peg' or 'gear'; context: a name in CONTEXTS, FAMILY:SEED (one scene of a family, scene.FAMILIES) or
+    task: 'peg' or 'gear'; context: a name in CONTEXTS, FAMILY:SEED (one scene of a family, contexts.FAMILIES) or
     FAMILY:test (a held-out scene of the family drawn each episode); randomize: families whose training scenes
-    (seeds below scene.FAMILY_TEST_SEED0) each episode draws from, in place of the context; e_r: guidance error range E_r (m, x y z;
+    (seeds below contexts.FAMILY_TEST_SEED0) each episode draws from, in place of the context; e_r: guidance error range E_r (m, x y z;
     the rotation error about z scales with it, E_ROT_FINAL at E_R_FINAL); ex_r: exploration range
     Ex_r (m), sets K through Eq. 8-9, floored at EX_MIN; roi: 'task' (Eq. 11) or a preset name;
     clearance: diametral clearance, m; e_r_max: the largest E_r this env will be set to (at least

@@ -35,6 +35,7 @@ import curriculum  # noqa: E402
 import evaluate  # noqa: E402
 import policy  # noqa: E402
 import rundir  # noqa: E402
+import contexts  # noqa: E402
 import scene  # noqa: E402
 import sim  # noqa: E402
 
@@ -65,7 +66,7 @@ class Config:
                           bounds=(0.0, 30.0))
     context: str = opt("train", "board location and background (Sec. 5.1.4), or FAMILY:SEED, one scene of a family "
                                 "(place, light, colour, parts, mixed), or FAMILY:test, a held-out one each episode",
-                       scene.ContextNames())
+                       contexts.ContextNames())
     roi: str = opt("task", "image window: task (Eq. 11's task attention) or a window of Fig. 11",
                    ("task", *sim.ROI_PRESETS))
     clearance_mm: float = opt(0.1, "diametral clearance of the peg or the gear's bore, mm", bounds=(0.0, 2.0),
@@ -417,7 +418,7 @@ def check(cfg):
             (cfg.eval and cfg.eval not in baselines.NAMES and not os.path.isfile(cfg.eval),
              f"--eval must be {', '.join(baselines.NAMES)} or an existing policy.pt file, not {cfg.eval!r}"),
             (cfg.eval == "two-step" and cfg.task != "peg", "--eval two-step is the peg-in-hole baseline (Table 1)"),
-            (not cfg.eval and scene.held_out_family(cfg.context), f"--context {cfg.context} draws held-out scenes: it is "
+            (not cfg.eval and contexts.held_out_family(cfg.context), f"--context {cfg.context} draws held-out scenes: it is "
                                                              "for --eval (training draws its own with --randomize)"),
             (randomize, f"--randomize takes {randomize}, comma-separated, not "
              f"{cfg.randomize!r}" + (f" with --context {cfg.context}" if cfg.context != "train" else "")),

@@ -6,7 +6,7 @@ import tempfile
 import numpy as np
 
 import control as ctl
-from scene import CONTEXTS, CONTROL_HZ, HOLE_DEPTH, R_DOWN, SHAFT_HEIGHT, World, p, quat_from_matrix, tool_xml
+from scene import CONTROL_HZ, Context, HOLE_DEPTH, R_DOWN, SHAFT_HEIGHT, World, p, quat_from_matrix, tool_xml
 from sim import F_MAX6, MASS, ZETA
 
 
@@ -32,7 +32,7 @@ def probe(world, x_start, x_target, f_d=np.zeros(6), ex=(1e-5, 1e-5, 0.05, 0.02,
     return world.tool_pose(), np.mean(hist[-CONTROL_HZ:], 0), float(np.mean(normal[-CONTROL_HZ:]))
 
 
-def lateral_play(task, clearance, yaws, directions=8, depth=0.010, force=0.2, steps=120, context=CONTEXTS["train"]):
+def lateral_play(task, clearance, yaws, directions=8, depth=0.010, force=0.2, steps=120, context=Context()):
     """The part's lateral play, measured physically: the tool's collision shape alone as a free body
     (1 kg, an inertia that keeps it upright), `depth` into the hole (peg) or onto the shaft (gear), at
     each relative yaw (rad) pushed with `force` N toward each of `directions` directions (no friction)

@@ -1,30 +1,31 @@
-"""Families of contexts (scene.family_context): scenes drawn from seeds, each family varying one thing the
+"""Families of contexts (contexts.family_context): scenes drawn from seeds, each family varying one thing the
 camera sees; held-out seeds apart from training's; parts beyond the tool's reach, some inside the task ROI
 at large errors; places clear of the workcell; the hand-designed policy still inserts in them."""
 import numpy as np
 import pytest
 
+import contexts
 import scene
 import sim
 
 SEEDS = range(40)
 
 
-@pytest.mark.parametrize("family", scene.FAMILIES)
+@pytest.mark.parametrize("family", contexts.FAMILIES)
 def test_a_seed_is_one_scene_and_seeds_differ(family):
-    scenes = [scene.family_context(family, s) for s in SEEDS]
-    assert scenes[0] == scene.family_context(family, 0) and scene.context_of(f"{family}:0") == scenes[0]
-    keys = [scene.context_key(f"{family}:{s}") for s in SEEDS]
+    scenes = [contexts.family_context(family, s) for s in SEEDS]
+    assert scenes[0] == contexts.family_context(family, 0) and contexts.context_of(f"{family}:0") == scenes[0]
+    keys = [contexts.context_key(f"{family}:{s}") for s in SEEDS]
     assert len(set(keys)) == len(scenes) and all("np." not in k for k in keys)     # plain floats: a cache's key
     field = {"place": "board_xy", "light": "light", "colour": "table_rgba", "parts": "objects", "objects": "objects",
              "touch": "friction"}
-    changed = {k for c in scenes for k in field.values() if getattr(c, k) != getattr(scene.CONTEXTS["train"], k)}
-    seen = {field[f] for f in scene.SEEN}
+    changed = {k for c in scenes for k in field.values() if getattr(c, k) != getattr(contexts.CONTEXTS["train"], k)}
+    seen = {field[f] for f in contexts.SEEN}
     assert changed == (seen if family == "mixed" else {field[family]})    # one kind, or all the seen ones together
 
 
 def test_held_out_scenes_and_training_scenes_never_meet(monkeypatch):
-    seen, real = {}, scene.family_context
+    seen, real = {}, contexts.family_context
     with sim.AssemblyEnv("peg", "light:test", image=False) as held_out, \
             sim.AssemblyEnv("peg", randomize=("light", "colour"), image=False) as randomized:
         for env, kind in ((held_out, "test"), (randomized, "train")):
@@ -33,8 +34,8 @@ def test_held_out_scenes_and_training_scenes_never_meet(monkeypatch):
             for ep in range(6):
                 env.scene_rng = np.random.default_rng([ep, 1])       # as reset(seed=ep) seeds it
                 env._episode_context()
-    assert all(f == "light" and s >= scene.FAMILY_TEST_SEED0 for f, s in seen["test"])
-    assert all(f in ("light", "colour") and s < scene.FAMILY_TEST_SEED0 for f, s in seen["train"])
+    assert all(f == "light" and s >= contexts.FAMILY_TEST_SEED0 for f, s in seen["test"])
+    assert all(f in ("light", "colour") and s < contexts.FAMILY_TEST_SEED0 for f, s in seen["train"])
     assert len(set(seen["test"])) == 6 and len({f for f, _ in seen["train"]}) == 2
 
 
@@ -47,9 +48,9 @@ def test_parts_lie_on_the_board_beyond_the_tools_reach_and_some_inside_the_task_
         u0, v0, u1, v1 = env.roi
         inside = 0
         for s in SEEDS:
-            for he, xy, _ in scene.family_context("parts", s, task).objects:
+            for he, xy, _ in contexts.family_context("parts", s, task).objects:
                 r = np.hypot(*he[:2])
-                assert np.all(np.abs(xy) <= scene.BOARD_HALF - r + 1e-9)                       # whole on the board
+                assert np.all(np.abs(xy) <= contexts.BOARD_HALF - r + 1e-9)                       # whole on the board
                 assert np.hypot(*xy) >= (scene.BUMP_R_MAX if task == "peg" else scene.GEAR_R_TIP) + r
                 if task == "gear":
                     assert np.hypot(xy[0] - scene.GEAR_CENTRES, xy[1]) >= scene.GEAR_R_TIP + r
@@ -89,18 +90,18 @@ def test_workbench_objects_stand_on_the_board_beyond_reach_some_in_the_roi_some_
                  for a in np.arange(8) * np.pi / 4]
         inside = hiding = 0
         for s in SEEDS:
-            objects = scene.family_context("objects", s, task).objects
-            assert scene.OBJECTS_PER_SCENE[0] <= len(objects) <= scene.OBJECTS_PER_SCENE[1]
+            objects = contexts.family_context("objects", s, task).objects
+            assert contexts.OBJECTS_PER_SCENE[0] <= len(objects) <= contexts.OBJECTS_PER_SCENE[1]
             for i, (he, xy, _) in enumerate(objects):
                 he, xy = np.array(he), np.array(xy)
-                assert np.all((scene.OBJECT_SIDE[0] - 1e-4 <= 2 * he[:2]) & (2 * he[:2] <= scene.OBJECT_SIDE[1] + 1e-4))
-                assert scene.OBJECT_TALL[0] - 1e-4 <= 2 * he[2] <= scene.OBJECT_TALL[1] + 1e-4
-                assert np.all(np.abs(xy) + he[:2] <= scene.BOARD_HALF + 1e-4)                      # whole on the board
+                assert np.all((contexts.OBJECT_SIDE[0] - 1e-4 <= 2 * he[:2]) & (2 * he[:2] <= contexts.OBJECT_SIDE[1] + 1e-4))
+                assert contexts.OBJECT_TALL[0] - 1e-4 <= 2 * he[2] <= contexts.OBJECT_TALL[1] + 1e-4
+                assert np.all(np.abs(xy) + he[:2] <= contexts.BOARD_HALF + 1e-4)                      # whole on the board
                 near = np.hypot(*np.maximum(np.abs(xy) - he[:2], 0))
                 reach = scene.BUMP_R_MAX if task == "peg" else (
                     scene.GEAR_R_TIP + sim.E_R_FINAL * np.sqrt(2) if 2 * he[2] > scene.SHAFT_HEIGHT - 0.002
                     else scene.GEAR_R_TIP)
-                assert scene.OBJECT_RING[0] - 1e-4 <= near <= scene.OBJECT_RING[1] + 1e-4 and near >= reach
+                assert contexts.OBJECT_RING[0] - 1e-4 <= near <= contexts.OBJECT_RING[1] + 1e-4 and near >= reach
                 if task == "gear":
                     assert np.hypot(*np.maximum(np.abs(xy - (scene.GEAR_CENTRES, 0)) - he[:2], 0)) >= scene.GEAR_R_TIP
                 assert not any(np.all(np.abs(xy - o[1]) < he[:2] + o[0][:2]) for o in objects[:i])   # no overlaps
@@ -116,12 +117,12 @@ def test_workbench_objects_stand_on_the_board_beyond_reach_some_in_the_roi_some_
 
 
 def test_other_places_stand_clear_of_the_workcell_within_reach_of_the_arm():
-    t = np.array(scene.CONTEXTS["train"].board_xy)
+    t = np.array(contexts.CONTEXTS["train"].board_xy)
     for s in SEEDS:
-        c = scene.family_context("place", s)
-        assert scene.PLACE_RING[0] <= np.linalg.norm(np.subtract(c.board_xy, t)) <= scene.PLACE_RING[1]
-        assert abs(c.board_yaw) <= scene.PLACE_YAW
-        corners = np.array(c.board_xy) + np.array([[1, 1], [1, -1], [-1, 1], [-1, -1]]) * scene.BOARD_HALF @ \
+        c = contexts.family_context("place", s)
+        assert contexts.PLACE_RING[0] <= np.linalg.norm(np.subtract(c.board_xy, t)) <= contexts.PLACE_RING[1]
+        assert abs(c.board_yaw) <= contexts.PLACE_YAW
+        corners = np.array(c.board_xy) + np.array([[1, 1], [1, -1], [-1, 1], [-1, -1]]) * contexts.BOARD_HALF @ \
             sim.ctl.rot_z(c.board_yaw)[:2, :2].T
         for he, centre, _ in scene.WORKCELL:
             assert not np.any(np.all(np.abs(corners - centre[:2]) < np.array(he[:2]), 1))
@@ -129,13 +130,13 @@ def test_other_places_stand_clear_of_the_workcell_within_reach_of_the_arm():
 
 def test_lights_and_colours_within_their_ranges():
     for s in SEEDS:
-        light = dict(scene.family_context("light", s).light)
+        light = dict(contexts.family_context("light", s).light)
         el = np.degrees(np.arcsin(light["lightDirection"][2] / np.linalg.norm(light["lightDirection"])))
         assert 34.9 <= el <= 85.1 and all(0.3 <= c <= 1.0 for c in light["lightColor"])
-        assert scene.LIGHT_AMBIENT[0] <= light["lightAmbientCoeff"] <= scene.LIGHT_AMBIENT[1]
-        c = scene.family_context("colour", s)
-        assert scene.TABLE_VALUE[0] - 1e-3 <= max(c.table_rgba[:3]) <= scene.TABLE_VALUE[1] + 1e-3
-        assert scene.BOARD_VALUE[0] - 1e-3 <= max(c.board_rgba[:3]) <= scene.BOARD_VALUE[1] + 1e-3
+        assert contexts.LIGHT_AMBIENT[0] <= light["lightAmbientCoeff"] <= contexts.LIGHT_AMBIENT[1]
+        c = contexts.family_context("colour", s)
+        assert contexts.TABLE_VALUE[0] - 1e-3 <= max(c.table_rgba[:3]) <= contexts.TABLE_VALUE[1] + 1e-3
+        assert contexts.BOARD_VALUE[0] - 1e-3 <= max(c.board_rgba[:3]) <= contexts.BOARD_VALUE[1] + 1e-3
 
 
 def test_the_hand_designed_policy_inserts_in_a_held_out_mixed_scene():
@@ -146,12 +147,12 @@ def test_the_hand_designed_policy_inserts_in_a_held_out_mixed_scene():
 
 def test_touch_scenes_within_their_ranges_and_the_world_made_of_them():
     for s in SEEDS:
-        c = scene.family_context("touch", s)
-        assert scene.TOUCH_FRICTION[0] <= c.friction <= scene.TOUCH_FRICTION[1]
-        assert scene.TOUCH_CLEARANCE[0] <= c.clearance <= scene.TOUCH_CLEARANCE[1]
-        assert np.hypot(*c.tilt) <= scene.TOUCH_TILT + 1e-5
-        assert c.board_xy == scene.CONTEXTS["train"].board_xy and not c.objects   # it changes only what is touched
-    assert scene.context_key("touch:3") != scene.context_key("train")
+        c = contexts.family_context("touch", s)
+        assert contexts.TOUCH_FRICTION[0] <= c.friction <= contexts.TOUCH_FRICTION[1]
+        assert contexts.TOUCH_CLEARANCE[0] <= c.clearance <= contexts.TOUCH_CLEARANCE[1]
+        assert np.hypot(*c.tilt) <= contexts.TOUCH_TILT + 1e-5
+        assert c.board_xy == contexts.CONTEXTS["train"].board_xy and not c.objects   # it changes only what is touched
+    assert contexts.context_key("touch:3") != contexts.context_key("train")
     with sim.AssemblyEnv("gear", "touch:test", image=False) as env:      # each episode's own bore and friction
         seen = set()
         for seed in range(2):
@@ -166,7 +167,7 @@ def test_touch_scenes_within_their_ranges_and_the_world_made_of_them():
 def test_the_touch_familys_friction_clearance_and_tilt_are_what_the_part_meets():
     import instruments
     for mu in (0.15, 0.6):               # the training world's pair (0.15, measured), and a dry one
-        ctx = scene.Context(friction=mu) if mu != 0.15 else scene.CONTEXTS["train"]
+        ctx = scene.Context(friction=mu) if mu != 0.15 else contexts.CONTEXTS["train"]
         assert instruments.sliding_friction(ctx) == pytest.approx(mu, rel=0.05)
     play = instruments.lateral_play("peg", 1e-4, [0.0], directions=4, context=scene.Context(clearance=0.25e-3))
     assert np.all(np.abs(play - 0.25e-3) < 0.02e-3), play

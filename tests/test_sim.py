@@ -7,6 +7,7 @@ import pytest
 
 import control as ctl
 import instruments
+import contexts
 import scene
 import sim
 
@@ -15,7 +16,7 @@ import sim
 @pytest.fixture(scope="module")
 def peg_world():
     w = scene.World("peg", ft_noise=False, image_noise=False)
-    yield w, *w.place(sim.CONTEXTS["train"])
+    yield w, *w.place(contexts.CONTEXTS["train"])
     w.close()
 
 
@@ -30,7 +31,7 @@ def peg_env():
 @pytest.fixture(scope="module")
 def gear_world():
     w = scene.World("gear", ft_noise=False, image_noise=False)
-    yield w, *w.place(sim.CONTEXTS["train"])
+    yield w, *w.place(contexts.CONTEXTS["train"])
     w.close()
 
 
@@ -144,7 +145,7 @@ def test_observation_carries_no_ground_truth():
     o1, _ = env.reset(seed=1, options={"error": e})
     # move the board (and so X_g) by `shift` and the error by -shift: X^_g is the same
     o2, _ = env.reset(seed=1, options={"error": e - shift, "goal_shift": shift})
-    assert not np.allclose(env.x_g[0][:2], sim.CONTEXTS["train"].board_xy)
+    assert not np.allclose(env.x_g[0][:2], contexts.CONTEXTS["train"].board_xy)
     np.testing.assert_allclose(o1["pose_hist"], o2["pose_hist"], atol=1e-6)
     np.testing.assert_allclose(o1["wrench_hist"], o2["wrench_hist"], atol=1e-6)
     env.close()
@@ -261,7 +262,7 @@ def first_obs(ctx, roi="task"):
         return obs, env.world.render_external()
 
 
-@pytest.mark.parametrize("ctx", [c for c in sim.CONTEXTS if c != "train"])
+@pytest.mark.parametrize("ctx", [c for c in contexts.CONTEXTS if c != "train"])
 def test_contexts_change_the_scene_not_the_task_relative_pose(ctx):
     (o1, view1), (o2, view2) = first_obs("train"), first_obs(ctx)
     np.testing.assert_allclose(o1["pose_hist"], o2["pose_hist"], atol=1e-5)   # relative to X^_g
@@ -273,7 +274,7 @@ def test_contexts_change_the_scene_not_the_task_relative_pose(ctx):
 def test_background_objects_stay_outside_the_task_roi_at_every_error_but_show_in_the_full_view(task, monkeypatch):
     # the largest errors (x, y at +-20 mm, raised 20 mm, turned +-0.1 rad) move the camera most; the objects
     # must not reach the task ROI's window at any of them. The full view shows them.
-    monkeypatch.setitem(sim.CONTEXTS, "bare", scene.Context())
+    monkeypatch.setitem(contexts.CONTEXTS, "bare", scene.Context())
     errors = [np.array([x, y, 0.02, r]) for x in (-0.02, 0.02) for y in (-0.02, 0.02) for r in (-0.1, 0.1)]
 
     def images(ctx, roi="task", errs=errors):
@@ -397,7 +398,7 @@ def test_board_bumps_are_fixed_per_board_and_keep_out_of_the_hole():
     bumps = scene.board_bumps(r_clear)
     assert bumps == scene.board_bumps(r_clear) and bumps != scene.board_bumps(r_clear, seed=1)
     w = scene.World("peg")
-    (p_g, R_g), _ = w.place(sim.CONTEXTS["loc-1"])
+    (p_g, R_g), _ = w.place(contexts.CONTEXTS["loc-1"])
     top = p_g[2] + scene.HOLE_DEPTH
     for rho, c in bumps:
         d = np.hypot(c[0], c[1])

@@ -16,6 +16,7 @@ import evaluate
 import policy
 import report
 import rundir
+import contexts
 import scene
 import sim
 import tacrl
@@ -352,9 +353,8 @@ def test_the_eta_counts_the_updates_still_to_come_during_the_warmup():
 
 def test_every_context_is_evaluated_once_and_the_table_names_each(tiny_run, tmp_path, monkeypatch):
     monkeypatch.setattr(sim, "MAX_STEPS", SHORT)
-    two = {k: sim.CONTEXTS[k] for k in ("train", "loc-2")}
-    monkeypatch.setattr(sim, "CONTEXTS", two)
-    monkeypatch.setattr(scene, "CONTEXTS", two)           # (where the env reads a context's name)
+    two = {k: contexts.CONTEXTS[k] for k in ("train", "loc-2")}
+    monkeypatch.setattr(contexts, "CONTEXTS", two)        # (where the env and the report read them)
     monkeypatch.setattr(sim, "FAMILIES", ("parts",))
     out = tmp_path / "docs"
     assert report.write_contexts(tiny_run["dir"], str(out), levels=(1.0,), episodes=1, log=lambda *_: None) == 0
@@ -363,7 +363,7 @@ def test_every_context_is_evaluated_once_and_the_table_names_each(tiny_run, tmp_
     assert f"| peg | {view} | loc-2 | 1 |" in text and "| train |" in text
     assert "| task | view | seeds | train | parts |" in text and f"| peg | {view} | 1 | - |" in text   # 20 mm: not trained at
     family = json.loads(open(os.path.join(tiny_run["dir"], "eval-ctx-parts-test.json")).read())
-    assert family["context"] == scene.context_key("parts:test", "peg") and family["levels"] == [20.0]
+    assert family["context"] == contexts.context_key("parts:test", "peg") and family["levels"] == [20.0]
     asked = []
     real_rows = report.context_rows
     monkeypatch.setattr(report, "context_rows", lambda job: asked.append(job[1]) or real_rows(job))
@@ -372,11 +372,11 @@ def test_every_context_is_evaluated_once_and_the_table_names_each(tiny_run, tmp_
     monkeypatch.setattr(report, "context_rows", real_rows)
     assert (out / "ctx-peg-bars.png").stat().st_size > 0 and (out / "ctx-peg-views.png").stat().st_size > 0
     cached = json.loads(open(os.path.join(tiny_run["dir"], "eval-ctx-loc-2.json")).read())
-    assert cached["world"] == sim.WORLD and cached["context"] == repr(sim.CONTEXTS["loc-2"])
+    assert cached["world"] == sim.WORLD and cached["context"] == repr(contexts.CONTEXTS["loc-2"])
     monkeypatch.setattr(evaluate, "evaluate_levels", lambda *a, **k: pytest.fail("evaluated again"))
     report.write_contexts(tiny_run["dir"], str(out), levels=(1.0,), episodes=1, log=lambda *_: None)
     # a redefined context is evaluated again
-    monkeypatch.setitem(sim.CONTEXTS, "loc-2", scene.Context(board_xy=(0.6, -0.2), board_yaw=0.3))
+    monkeypatch.setitem(contexts.CONTEXTS, "loc-2", scene.Context(board_xy=(0.6, -0.2), board_yaw=0.3))
     with pytest.raises(pytest.fail.Exception, match="evaluated again"):
         report.write_contexts(tiny_run["dir"], str(out), levels=(1.0,), episodes=1, log=lambda *_: None)
 

@@ -30,6 +30,7 @@ if __name__ == "__main__":     # Ctrl-C while torch and pybullet load: one line 
 import numpy as np  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))   # the core modules, one folder up
+import contexts  # noqa: E402
 import evaluate  # noqa: E402
 import figures  # noqa: E402
 import report  # noqa: E402
@@ -88,11 +89,11 @@ def issue_scene(rng):
             he = (*(rng.uniform(*side, 2) / 2), rng.uniform(*tall) / 2)
             a, d = rng.uniform(0, 2 * np.pi), rng.uniform(*ring)
             xy = np.array([d * np.cos(a), d * np.sin(a)])
-            if np.all(np.abs(xy) + he[:2] <= scene.BOARD_HALF) and not any(
+            if np.all(np.abs(xy) + he[:2] <= contexts.BOARD_HALF) and not any(
                     np.all(np.abs(xy - o[1]) < np.add(he[:2], o[0][:2])) for o in out):
                 break
         out.append((tuple(round(float(v), 4) for v in he), tuple(round(float(v), 4) for v in xy),
-                    scene.PART_COLOURS[rng.integers(len(scene.PART_COLOURS))]))
+                    contexts.PART_COLOURS[rng.integers(len(contexts.PART_COLOURS))]))
     return scene.Context(objects=tuple(out), on_board=True)
 
 
@@ -184,7 +185,7 @@ def ci(values):
     return f"{mean[0]:.2f} ({lo[0]:.2f}-{hi[0]:.2f})"
 
 
-SCENES = {"family": "held-out scenes of the `objects` family (scene.py)",
+SCENES = {"family": "held-out scenes of the `objects` family (contexts.py)",
           "issue": "scenes of the kind issue 53 found the peg failing in: 2-4 blocks 2-3 cm across and 1-2 cm tall, "
                    "their centres 3-6 cm from the hole (within the tool's reach)"}
 

@@ -31,10 +31,10 @@ import torch  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))   # the core modules, one folder up
 import baselines  # noqa: E402
+import contexts  # noqa: E402
 import evaluate  # noqa: E402
 import figures  # noqa: E402
 import rundir  # noqa: E402
-import scene  # noqa: E402
 import sweep  # noqa: E402
 import sim  # noqa: E402
 import tacrl  # noqa: E402
@@ -593,13 +593,13 @@ GOAL_SR15, GOAL_DROP20 = 0.9, 0.1      # issue 22's goal: SR >= 0.9 at 15 mm, wi
 def goal_applies(ctx):
     """The goal holds the task-attention policy to every other place of the board and to backgrounds whose
     objects stay outside the task ROI; objects on the board, light and colour change what the ROI shows."""
-    c = sim.CONTEXTS[ctx]
+    c = contexts.CONTEXTS[ctx]
     return ctx.startswith("loc-") or (c.objects and not c.on_board)
 
 
 def describe(name):
     """One line on what a context changes against training's."""
-    c, t = sim.CONTEXTS[name], sim.CONTEXTS["train"]
+    c, t = contexts.CONTEXTS[name], contexts.CONTEXTS["train"]
     what = []
     if (c.board_xy, c.board_yaw) != (t.board_xy, t.board_yaw):
         what.append(f"the board {100 * np.hypot(*np.subtract(c.board_xy, t.board_xy)):.0f} cm away, turned "
@@ -620,7 +620,7 @@ def context_rows(job, log=None):
     d, ctx, levels, episodes = job
     torch.set_num_threads(1)
     task = read_json(os.path.join(d, "config.json"))["task"]
-    key = {"world": sim.WORLD, "context": scene.context_key(ctx, task), "levels": list(levels), "episodes": episodes}
+    key = {"world": sim.WORLD, "context": contexts.context_key(ctx, task), "levels": list(levels), "episodes": episodes}
     path = os.path.join(d, f"eval-ctx-{ctx.replace(':', '-')}.json")
     cached = read_json(path) if os.path.exists(path) else {}
     if {k: v for k, v in cached.items() if k != "rows"} == key:
@@ -683,8 +683,8 @@ def family_section(runs, episodes, jobs, log):
             x["success_rate"] for x in r["eval"]["rows"] if x["error_mm"] == FAMILY_MM)
     for (d, ctx, _, _), rows in zip(jobs_list, evaluate_jobs(jobs_list, jobs)):
         r = next(r for r in runs if r["dir"] == d)
-        families[(r["cfg"]["task"], view_of(r["cfg"]))].setdefault(scene.held_out_family(ctx), []).append(rows[0]["success_rate"])
-    md = [f"Each family (`scene.FAMILIES`) draws a scene from a seed; each of the {episodes} trials of a run meets a "
+        families[(r["cfg"]["task"], view_of(r["cfg"]))].setdefault(contexts.held_out_family(ctx), []).append(rows[0]["success_rate"])
+    md = [f"Each family (`contexts.FAMILIES`) draws a scene from a seed; each of the {episodes} trials of a run meets a "
           "scene of its own, from seeds that training never draws (`--context FAMILY:test`). Success rate at "
           f"{FAMILY_MM:g} mm, mean over seeds (min-max); train: the run's eval.json (the same evaluation seeds).", "",
           "| task | view | seeds | train | " + " | ".join(sim.FAMILIES) + " |", "|---" * (4 + len(sim.FAMILIES)) + "|"]
@@ -692,7 +692,7 @@ def family_section(runs, episodes, jobs, log):
     for (task, view), by_family in sorted(families.items(), key=lambda kv: (kv[0][0], not kv[0][1].startswith(VIEWS["task"]), kv[0][1])):
         md.append(f"| {task} | {view} | {len(by_family[sim.FAMILIES[0]])} | {cell(by_family.get('train', []))} | "
                   + " | ".join(cell(by_family.get(f, [])) for f in sim.FAMILIES) + " |")
-    return md + ["", "The families (ranges in `scene.py`, ours): " + "; ".join(f"`{f}`: {FAMILY_WHAT[f]}"
+    return md + ["", "The families (ranges in `contexts.py`, ours): " + "; ".join(f"`{f}`: {FAMILY_WHAT[f]}"
                                                                                for f in sim.FAMILIES) + "."]
 
 
@@ -709,14 +709,14 @@ def write_families(patterns, out_dir, episodes=20, jobs=1, log=print):
 
 def write_contexts(patterns, out_dir, levels=LEVELS, episodes=20, jobs=1, log=print):
     """Train in one context, test in all: every run of ours (task attention) and of its full-view twin made in
-    this world, evaluated in every context of sim.CONTEXTS at `levels` (mm), `episodes` trials each; writes
+    this world, evaluated in every context of contexts.CONTEXTS at `levels` (mm), `episodes` trials each; writes
     out_dir/CONTEXTS.md with the table, the goal's check, Fig. 12 and each context's full and task views."""
     runs = ours_runs(patterns, out_dir)
     # a run trained in scenes drawn from the families (--randomize) has met light, colours and parts of the kinds
     # the named backgrounds show: it is tested on the families' held-out seeds alone
     named = [r for r in runs if not r["cfg"].get("randomize")]
-    jobs_list = [(r["dir"], ctx, tuple(levels), episodes) for r in named for ctx in sim.CONTEXTS]
-    log(f"  {len(named)} runs x {len(sim.CONTEXTS)} contexts, {len(jobs_list) * len(levels) * episodes} episodes "
+    jobs_list = [(r["dir"], ctx, tuple(levels), episodes) for r in named for ctx in contexts.CONTEXTS]
+    log(f"  {len(named)} runs x {len(contexts.CONTEXTS)} contexts, {len(jobs_list) * len(levels) * episodes} episodes "
         f"in {jobs} processes (cached ones are read back)")
     table, trained = {}, {}    # (task, view, context) -> [rows of each seed]; (task, view) -> its seeds' training
     for (d, ctx, _, _), rows in zip(jobs_list, evaluate_jobs(jobs_list, jobs)):
@@ -725,7 +725,7 @@ def write_contexts(patterns, out_dir, levels=LEVELS, episodes=20, jobs=1, log=pr
     for r in runs:
         trained.setdefault((r["cfg"]["task"], view_of(r["cfg"])), []).append(training_of(r))
     md = ["# Context generalization: trained in `train`, tested in every context", "",
-          f"Made by `python tools/report.py --contexts \"{patterns}\"`. Every context is defined in `sim.CONTEXTS` "
+          f"Made by `python tools/report.py --contexts \"{patterns}\"`. Every context is defined in `contexts.CONTEXTS` "
           f"(world {sim.WORLD}); the figures below show what each looks like. Each cell: success rate, mean over "
           f"seeds (min-max), {episodes} trials per seed at each error range on held-out evaluation seeds; CR: the mean "
           "cumulative reward over the ranges. Goal (task attention): SR >= 0.9 at 15 mm and within 0.1 of training's "
@@ -734,7 +734,7 @@ def write_contexts(patterns, out_dir, levels=LEVELS, episodes=20, jobs=1, log=pr
           "| task | view | context | seeds | " + " | ".join(f"{mm:g} mm" for mm in levels) + " | CR | goal |",
           "|---" * (6 + len(levels)) + "|"]
     bars = {}
-    order = lambda k: (k[0], not k[1].startswith(VIEWS["task"]), k[1], list(sim.CONTEXTS).index(k[2]))  # noqa: E731
+    order = lambda k: (k[0], not k[1].startswith(VIEWS["task"]), k[1], list(contexts.CONTEXTS).index(k[2]))  # noqa: E731
     for task, view, ctx in sorted(table, key=order):          # task attention first, the contexts as defined
         seeds = table[(task, view, ctx)]
         sr = np.array([[x["success_rate"] for x in rows] for rows in seeds])          # (seeds, levels)
@@ -757,7 +757,7 @@ def write_contexts(patterns, out_dir, levels=LEVELS, episodes=20, jobs=1, log=pr
     md += ["", "Training (each run stops when learned, at most its --train-episodes; one trained on since, with "
            "`--resume DIR --train-episodes N --stop-held 0`, says where it had first finished):", ""]
     md += [f"- {task}, {view}: {', '.join(v)}" for (task, view), v in sorted(trained.items())]
-    md += ["", "The contexts:", ""] + [f"- `{name}`: {describe(name)}" for name in sim.CONTEXTS]
+    md += ["", "The contexts:", ""] + [f"- `{name}`: {describe(name)}" for name in contexts.CONTEXTS]
     md += ["", PAPER_FIG12, ""]
     for task, by_view in bars.items():
         name = f"ctx-{task}-bars.png"
@@ -766,7 +766,7 @@ def write_contexts(patterns, out_dir, levels=LEVELS, episodes=20, jobs=1, log=pr
                "seeds), task attention against the full view (the paper's Fig. 12)*", ""]
     for task in sorted({t for t, _, _ in table}):
         name = f"ctx-{task}-views.png"
-        figures.plot_views(task, ("full", "task"), tuple(sim.CONTEXTS), os.path.join(out_dir, name))
+        figures.plot_views(task, ("full", "task"), tuple(contexts.CONTEXTS), os.path.join(out_dir, name))
         md += [f"![{task}: the contexts]({name})", "", f"*{task}: what the policy sees in each context at the start "
                "of the same episode, through the full view and the task-attention ROI*", ""]
     with open(os.path.join(out_dir, "CONTEXTS.md"), "w") as f:
