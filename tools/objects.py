@@ -27,6 +27,7 @@ import sys
 if __name__ == "__main__":     # Ctrl-C while torch and pybullet load: one line and exit 130
     signal.signal(signal.SIGINT, lambda *_: (sys.stderr.write("\nobjects: interrupted\n"), os._exit(130)))
 
+import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))   # the core modules, one folder up
@@ -45,6 +46,7 @@ ISSUE_BLOCKS = (2, 4), (0.02, 0.03), (0.01, 0.02), (0.03, 0.06)
 CHANGED = 8                  # grey levels: a pixel the objects change (the shot noise is drawn alike in both images)
 CONDITIONS = ("seen", "blind", "hand", "hand-away")
 SHOWN = 4                    # episodes the figure shows
+SMOOTH = 2.0                 # px: the saliency shown is blurred by a Gaussian of this sigma (one pixel's is noise)
 
 
 @contextlib.contextmanager
@@ -185,9 +187,9 @@ def ci(values):
     return f"{mean[0]:.2f} ({lo[0]:.2f}-{hi[0]:.2f})"
 
 
-SCENES = {"family": "held-out scenes of the `objects` family (contexts.py)",
-          "issue": "scenes of the kind issue 53 found the peg failing in: 2-4 blocks 2-3 cm across and 1-2 cm tall, "
-                   "their centres 3-6 cm from the hole (within the tool's reach)"}
+SCENES = {"issue": "scenes of the kind issue 53 found the peg failing in: 2-4 blocks 2-3 cm across and 1-2 cm tall, "
+                   "their centres 3-6 cm from the hole (within the tool's reach)",
+          "family": "held-out scenes of the `objects` family (contexts.py)"}
 
 
 def write_docs(out, docs, log=print):
@@ -200,10 +202,9 @@ def write_docs(out, docs, log=print):
           f"Made by `python tools/objects.py --docs docs` from `{out}` (world {sim.WORLD}). Each run meets the same "
           f"held-out scenes at {ERROR_MM:g} mm (evaluation's seeds) four ways: seeing the objects (seen); blind to "
           "them (the physics holds them, each image the policy gets is rendered without them, with the same sensor "
-          "noise); "
-          "the hand-designed part alone, which sees no image (hand); and the same with the objects moved 5 m away, "
-          "the same bodies in the solver but out of reach (hand-away). Each cell: the mean over the runs (seeds) with a 95 % bootstrap interval over them, "
-          "then each run's."]
+          "noise); the hand-designed part alone, which sees no image (hand); and the same with the objects moved 5 m "
+          "away, the same bodies in the solver but out of reach (hand-away). Each cell: the mean over the runs (seeds) "
+          "with a 95 % bootstrap interval over them, then each run's."]
     for sc, task in sorted({(r["scenes"], r["task"]) for r in results}, key=lambda k: (list(SCENES).index(k[0]), k[1])):
         mine = [r for r in results if (r["scenes"], r["task"]) == (sc, task)]
         rows = [r["summary"] for r in mine]
@@ -211,6 +212,12 @@ def write_docs(out, docs, log=print):
                f"{len(mine)} runs, {rows[0]['episodes']} episodes each a condition: "
                + ", ".join(f"`{os.path.basename(os.path.normpath(r['dir']))}`" for r in mine) + ".", "",
                "| measure | mean over runs (95 % interval) | per run |", "|---|---|---|"]
+        total = lambda key: sum(r[key] for r in rows)  # noqa: E731
+        sr = lambda key: np.mean([r[key] for r in rows])  # noqa: E731
+        md[-2:-2] = [f"Blind to the objects the policy inserts {sr('sr_blind'):.2f}, seeing them {sr('sr_seen'):.2f}. "
+                     f"The tool touched an object in {total('touched_seen')} of {len(rows) * rows[0]['episodes']} "
+                     f"episodes seeing them, {total('touched_blind')} blind and "
+                     f"{total('touched_hand')} with the hand-designed part alone.", ""]
         line = lambda name, key, f="{:.2f}": md.append(  # noqa: E731
             f"| {name} | {ci([r[key] for r in rows])} | {' / '.join(f.format(r[key]) for r in rows)} |")
         line("SR, the policy seeing the objects", "sr_seen")
@@ -228,7 +235,7 @@ def write_docs(out, docs, log=print):
         md += ["", f"![{task}: first images with the objects, without them, and the saliency]({fig})", "",
                f"*{task}, `{os.path.basename(os.path.normpath(mine[0]['dir']))}`: the first image of its first {SHOWN} "
                "episodes (the task ROI at the start, 80 x 80), the same without the objects, and the saliency of the "
-               "lateral force actions there (|dF_x/dI| + |dF_y/dI|).*"]
+               f"lateral force actions there (|dF_x/dI| + |dF_y/dI|, blurred over {SMOOTH:g} px).*"]
         plot_shown(first_images(report.load_run(mine[0]["dir"]), sc), os.path.join(docs, fig))
     with open(os.path.join(docs, "OBJECTS.md"), "w") as f:
         f.write("\n".join(md) + "\n")
@@ -240,7 +247,8 @@ def plot_shown(shown, path):
     fig, axs = plt.subplots(3, len(shown), figsize=(2.4 * len(shown), 7.4), squeeze=False)
     for j, s in enumerate(shown):
         for i, (key, cmap) in enumerate((("seen", "gray"), ("blind", "gray"), ("saliency", "hot"))):
-            axs[i][j].imshow(s[key], cmap=cmap, **({"vmin": 0, "vmax": 255} if cmap == "gray" else {}))
+            img = s[key] if cmap == "gray" else cv2.GaussianBlur(s[key], (0, 0), SMOOTH)
+            axs[i][j].imshow(img, cmap=cmap, **({"vmin": 0, "vmax": 255} if cmap == "gray" else {}))
             axs[i][j].set_xticks([]), axs[i][j].set_yticks([])
         axs[0][j].set_title(f"episode {j}", fontsize=9)
     for i, name in enumerate(("with objects", "without", "saliency")):
