@@ -10,12 +10,11 @@ Eq. 16 (curriculum.py) widens the error range; then its evaluation (evaluate.py,
     python tacrl.py --task peg --eval two-step --error-mm 20    # the classical baseline (baselines.py)
 
 The file reads top to bottom: the run's config (every flag, once), Algorithm 1 (train), then the command
-line. What a run directory holds is rundir.py's; several seeds and the paper's experiments at once: tools/sweep.py.
+line (cli.py: what every command shares). What a run directory holds is rundir.py's; several seeds and the
+paper's experiments at once: tools/sweep.py.
 """
-import dataclasses
 import importlib
 import json
-import math
 import os
 import signal
 import sys
@@ -25,26 +24,19 @@ from dataclasses import asdict, dataclass, fields, replace
 if __name__ == "__main__":     # Ctrl-C while torch and pybullet load: one line and exit 130, not a traceback
     signal.signal(signal.SIGINT, lambda *_: (sys.stderr.write("\ntacrl: interrupted\n"), os._exit(130)))
 
-import argparse  # noqa: E402
-
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
 import baselines  # noqa: E402
+import contexts  # noqa: E402
 import curriculum  # noqa: E402
 import evaluate  # noqa: E402
 import policy  # noqa: E402
 import rundir  # noqa: E402
-import contexts  # noqa: E402
 import scene  # noqa: E402
 import sim  # noqa: E402
-
-
-def opt(default, help, choices=None, mode=None, bounds=None, open_bounds=False):
-    """A Config field that is a flag: its default, --help text, allowed values or bounds (lo, hi; None for no
-    bound; within them or, with open_bounds, strictly), and the mode it is for (None: every mode)."""
-    return dataclasses.field(default=default, metadata={"help": help, "choices": choices, "mode": mode,
-                                                        "bounds": bounds, "open": open_bounds})
+from cli import (ArgError, check_bounds, check_dir_writable, check_new_file, command, describe, from_dict, opt,  # noqa: E402
+                 parse)
 
 
 def train_opt(*args, **kw):                       # a flag for training only (refused with --eval)
@@ -368,14 +360,6 @@ def warn_oversubscribed(prog, threads, processes=1, cores=None):
 
 
 # ---------------------------------------------------------------- the command line
-class ArgError(Exception):
-    """A user's mistake: one line naming the flag or file and what is wrong, exit code 2, before any work."""
-
-
-class Failed(Exception):
-    """Work that was started and failed (a training run of tools/sweep.py): one line, exit code 1."""
-
-
 def parse_args(argv):
     """argv -> a checked Config. A flag that would not apply (a training flag with --eval, or the other way
     round; with --resume, all but those of RESUME_MAY_SET) is a mistake, not silently ignored."""
@@ -584,142 +568,6 @@ def main(argv=None):
         except rundir.RunError as e:               # a run dir that cannot be continued as it is
             raise ArgError(f"--resume {cfg.run_dir!r}: {e}")
     return command("tacrl", lambda: run(parse_args(sys.argv[1:] if argv is None else list(argv))))
-
-
-# ---------------------------------------------------------------- command-line plumbing (tools/ use it too)
-class Parser(argparse.ArgumentParser):
-    """argparse, but a mistake is an ArgError (one line, no usage dump) and no flag may be abbreviated
-    (a typo of one flag must not pass as another)."""
-
-    def __init__(self, **kw):
-        super().__init__(allow_abbrev=False, **kw)
-
-    def error(self, message):
-        raise ArgError(message)
-
-
-def parse(config_cls, argv, description):
-    """argv -> {field name: value} of the flags given (not the defaults: the caller can tell what the
-    user asked for), through a Parser built from config_cls's opt() fields; floats must be finite."""
-    ap = Parser(description=description)
-    for f in dataclasses.fields(config_cls):
-        flag = "--" + f.name.replace("_", "-")
-        lo, hi = f.metadata["bounds"] or (None, None)
-        bounds = "" if f.metadata["bounds"] is None else f"; {lo if lo is not None else ''}..{hi if hi is not None else ''}"
-        hlp = f.metadata["help"] + (f" (default: {f.default}{bounds})" if f.default not in ("", False) else "")
-        if f.type is bool:
-            ap.add_argument(flag, action="store_true", default=argparse.SUPPRESS, help=hlp)
-        else:
-            ap.add_argument(flag, type=finite_float if f.type is float else f.type, default=argparse.SUPPRESS,
-                            choices=f.metadata["choices"], help=hlp)
-    return vars(ap.parse_args(argv))
-
-
-def check_bounds(cfg):
-    """Every opt() field of cfg within its bounds, else an ArgError naming the flag."""
-    for f in dataclasses.fields(cfg):
-        lo, hi = f.metadata["bounds"] or (None, None)
-        v, strict = getattr(cfg, f.name), f.metadata["open"]
-        if (lo is not None and (v <= lo if strict else v < lo)) or (hi is not None and (v >= hi if strict else v > hi)):
-            where = f"at least {lo}" if hi is None else f"at most {hi}" if lo is None else \
-                f"within {'(' if strict else ''}{lo}..{hi}{')' if strict else ''}"
-            raise ArgError(f"--{f.name.replace('_', '-')} must be {where}, not {v}")
-
-
-def from_dict(config_cls, d):
-    """A config_cls from a dict read from a file: every key a field, every value of its field's type
-    (an int for a float is fine) and among its choices; ValueError naming the first that is not."""
-    if not isinstance(d, dict):
-        raise ValueError("not a JSON object")
-    fields_ = {f.name: f for f in dataclasses.fields(config_cls)}
-    for k, v in d.items():
-        f = fields_.get(k)
-        if f is None:
-            raise ValueError(f"{k!r} is not a flag")
-        if f.type is float and type(v) is int:
-            d[k] = v = float(v)
-        if type(v) is not f.type or (f.type is float and not math.isfinite(v)):
-            kind = {int: "an integer", float: "a finite number", str: "a string", bool: "true or false"}[f.type]
-            raise ValueError(f"{k!r} is {v!r}, not {kind}")
-        if f.metadata["choices"] and v not in f.metadata["choices"]:
-            raise ValueError(f"{k!r} is {v!r}, not one of {', '.join(f.metadata['choices'])}")
-    return config_cls(**d)
-
-
-def finite_float(text):
-    """argparse type: a float that is a number (nan and inf are not)."""
-    try:
-        x = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}")
-    if not math.isfinite(x):
-        raise argparse.ArgumentTypeError(f"not a finite number: {text!r}")
-    return x
-
-
-def command(prog, fn):
-    """Run fn() as the command `prog`; returns its exit code: 0, 2 for an ArgError, 1 for Failed, 130 for Ctrl-C,
-    each with its one line. From here Ctrl-C is a KeyboardInterrupt again (the scripts make it a plain exit
-    while their imports load), so that fn can say what is saved."""
-    signal.signal(signal.SIGINT, signal.default_int_handler)
-    try:
-        fn()
-        return 0
-    except ArgError as e:
-        print(f"{prog}: error: {e}", file=sys.stderr)
-        return 2
-    except Failed as e:
-        print(f"{prog}: failed: {e}", file=sys.stderr)
-        return 1
-    except KeyboardInterrupt as e:
-        print(f"\n{prog}: interrupted" + (f": {e}" if str(e) else ""), file=sys.stderr)
-        return 130
-
-
-def describe(e):
-    """An exception as a short phrase for a one-line message (its type, and its first line if any)."""
-    lines = str(e).strip().splitlines()
-    return f"{type(e).__name__}: {lines[0][:120]}" if lines else type(e).__name__
-
-
-def can_write_in(folder):
-    """Whether a file can be created in this existing folder: tried, not guessed (os.access says yes to
-    root even where nothing can be written, such as /proc)."""
-    try:
-        fd, probe = tempfile.mkstemp(dir=folder, prefix=".tacrl-probe-")
-    except OSError:
-        return False
-    os.close(fd)
-    os.remove(probe)
-    return True
-
-
-def check_dir_writable(path, what):
-    """`path` is a directory we may write in, or one we could create (its nearest existing parent is
-    a writable directory). Leaves nothing behind."""
-    p = os.path.abspath(path)
-    if os.path.exists(p) and not os.path.isdir(p):
-        raise ArgError(f"{what} {path!r} is a file, not a directory")
-    while not os.path.exists(p):
-        p = os.path.dirname(p)
-    if not os.path.isdir(p):
-        raise ArgError(f"{what} {path!r}: {p!r} is a file, not a directory")
-    if not can_write_in(p):
-        raise ArgError(f"{what} {path!r}: nothing can be written in {p!r}")
-
-
-def check_new_file(path, what):
-    """`path` names a file that does not exist yet, in a writable directory that exists: a command that
-    will write it can, and overwrites nothing. Leaves nothing behind."""
-    if os.path.isdir(path):
-        raise ArgError(f"{what} {path!r} is a directory, not a file")
-    if os.path.lexists(path):
-        raise ArgError(f"{what} {path!r} exists: it would be overwritten (remove it or name another file)")
-    parent = os.path.dirname(os.path.abspath(path))
-    if not os.path.isdir(parent):
-        raise ArgError(f"{what} {path!r}: its folder {parent!r} does not exist")
-    if not can_write_in(parent):
-        raise ArgError(f"{what} {path!r}: nothing can be written in {parent!r}")
 
 
 if __name__ == "__main__":

@@ -14,6 +14,7 @@ import torch
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+import cli
 import baselines
 import report
 import sim
@@ -153,7 +154,7 @@ def test_ctrl_c_while_training_says_how_to_resume(here, tmp_path, capsys, monkey
 
 
 def test_report_and_archive_mistakes(here, tmp_path, capsys, monkeypatch, unfinished_run):
-    run = lambda *argv: tacrl.command("report", lambda: report.main(list(argv)))   # noqa: E731
+    run = lambda *argv: cli.command("report", lambda: report.main(list(argv)))   # noqa: E731
     monkeypatch.chdir(tmp_path)
     for name in ("afile", "badtype", "run"):
         shutil.copytree(here / name, name) if name != "afile" else shutil.copy(here / name, name)
@@ -196,7 +197,7 @@ def test_random_flag_values_give_a_checked_config_or_one_line(flags, here):
     before = snapshot(here)
     try:
         cfg = tacrl.parse_args(argv)
-    except tacrl.ArgError as e:
+    except cli.ArgError as e:
         assert "\n" not in str(e) and str(e)
     else:                                   # what got through is what the flags promise
         assert cfg.task in ("peg", "gear") and 0 <= cfg.error_mm <= 30 and 0 < cfg.lr < 1 and 0 < cfg.gamma < 1

@@ -6,6 +6,7 @@ from dataclasses import asdict
 
 import pytest
 
+import cli
 import rundir
 import sweep
 import tacrl
@@ -18,7 +19,7 @@ def test_every_row_of_an_experiment_trains_the_same_budget_in_a_run_dir_of_its_o
     jobs = sweep.plan(list(sweep.EXPERIMENTS), [0, 1, 2], "runs")
     assert len({j.run_dir for j in jobs}) == len(jobs) and all(j.state == "new" for j in jobs)
     for name, rows in sweep.EXPERIMENTS.items():
-        budgets = {tuple(tacrl.parse(tacrl.Config, r, "").get(k) for k in ("train_episodes", "stop_held")) for r in rows}
+        budgets = {tuple(cli.parse(tacrl.Config, r, "").get(k) for k in ("train_episodes", "stop_held")) for r in rows}
         assert len(budgets) == 1, name
     table1 = [j.run_dir for j in jobs if j.run_dir.startswith(os.path.join("runs", "table1"))]
     assert len(table1) == 12 and all(any(k in d for d in table1) for k in ("vanilla", "-v-", "-ts-ptk-"))
@@ -46,14 +47,14 @@ def test_a_sweep_runs_here_skips_what_finished_and_resumes_what_stopped(tmp_path
         rundir.write_config(d, asdict(cfg))
         if state == "done":
             open(os.path.join(d, "eval.json"), "w").write("{}")
-    assert tacrl.command("sweep", lambda: sweep.main(["--seeds", "0,1,2", "--root", root, "--list", "--", *TINY])) == 0
+    assert cli.command("sweep", lambda: sweep.main(["--seeds", "0,1,2", "--root", root, "--list", "--", *TINY])) == 0
     assert capsys.readouterr().out.split() == ["done", dirs[0], "resume", dirs[1], "new", dirs[2]]
-    assert tacrl.command("sweep", lambda: sweep.main(["--seeds", "0,1,2", "--root", root, "--", *TINY])) == 0
+    assert cli.command("sweep", lambda: sweep.main(["--seeds", "0,1,2", "--root", root, "--", *TINY])) == 0
     out = capsys.readouterr().out
     assert "3 runs, 1 finished already; 2 to run here" in out and out.count("finished (") == 2
     assert [open(os.path.join(d, "train.log")).read().split() for d in dirs[1:]] == [["ep", "resume", "1"],
                                                                                     ["ep", "new", "1"]]
-    assert tacrl.command("sweep", lambda: sweep.main(["--seeds", "0", "--root", root, "--", *TINY, "--eval-levels", "2"])) == 2
+    assert cli.command("sweep", lambda: sweep.main(["--seeds", "0", "--root", root, "--", *TINY, "--eval-levels", "2"])) == 2
     assert "holds another run (its eval_levels differ)" in capsys.readouterr().err     # nothing overwritten
 
 
@@ -107,7 +108,7 @@ def test_a_sweep_runs_as_ray_tasks_on_a_local_instance(tmp_path, monkeypatch):
     (["--seeds", "2,-3", "--", "--task", "peg"], "--seed must be within 0..2147483647, not -3"),   # every seed first
 ])
 def test_sweep_mistakes_are_one_line_and_exit_2(argv, message, capsys, tmp_path):
-    assert tacrl.command("sweep", lambda: sweep.main(["--root", str(tmp_path), *argv])) == 2
+    assert cli.command("sweep", lambda: sweep.main(["--root", str(tmp_path), *argv])) == 2
     err = capsys.readouterr().err
     assert err.startswith("sweep: error:") and message in err and err.count("\n") == 1
     assert not os.listdir(tmp_path)
@@ -115,7 +116,7 @@ def test_sweep_mistakes_are_one_line_and_exit_2(argv, message, capsys, tmp_path)
 
 def test_failed_runs_are_named_and_the_sweep_exits_1(tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(sweep, "command", lambda job, threads: ["python3", "-c", "import sys; sys.exit(3)"])
-    assert tacrl.command("sweep", lambda: sweep.main(["--seeds", "0,1", "--root", str(tmp_path), "--", *TINY])) == 1
+    assert cli.command("sweep", lambda: sweep.main(["--seeds", "0,1", "--root", str(tmp_path), "--", *TINY])) == 1
     err = capsys.readouterr().err
     assert err.startswith("sweep: failed: 2 of 2 runs failed") and "the same command resumes them" in err
 
@@ -123,9 +124,9 @@ def test_failed_runs_are_named_and_the_sweep_exits_1(tmp_path, capsys, monkeypat
 def test_runs_never_ask_for_more_threads_than_cores_and_a_warning_says_where_the_user_does(tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(sweep.os, "cpu_count", lambda: 2)
     argv = ["--seeds", "0,1,2", "--root", str(tmp_path), "--dry-run"]
-    assert tacrl.command("sweep", lambda: sweep.main([*argv, "--", *TINY])) == 0
+    assert cli.command("sweep", lambda: sweep.main([*argv, "--", *TINY])) == 0
     out, err = capsys.readouterr()
     assert err == "" and out.count("--threads 1") == 3
-    assert tacrl.command("sweep", lambda: sweep.main([*argv, "--threads", "2", "--parallel", "2", "--", *TINY])) == 0
+    assert cli.command("sweep", lambda: sweep.main([*argv, "--threads", "2", "--parallel", "2", "--", *TINY])) == 0
     err = capsys.readouterr().err
     assert err.startswith("sweep: warning:") and "--threads 1" in err

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 import torch
 
+import cli
 import evaluate
 import policy
 import report
@@ -193,7 +194,7 @@ def test_archive_keeps_what_the_report_reads_and_skips_unfinished_runs(tiny_run,
         [str(results / "run")]
     assert sorted(os.listdir(results / "run")) == ["config.json", "curves.png", "eval.json", "metrics.csv", "policy.pt"]
     assert any(str(unfinished) in x and "not finished" in x for x in lines)
-    assert tacrl.command("report", lambda: report.main([str(unfinished), "--archive"])) == 2
+    assert cli.command("report", lambda: report.main([str(unfinished), "--archive"])) == 2
 
 
 def test_report_is_written_from_an_archive(tiny_run, tmp_path):
@@ -207,7 +208,7 @@ def test_report_is_written_from_an_archive(tiny_run, tmp_path):
     report.write_world_cache(str(docs / "two-step-peg-20mm.json"), sim.WORLD, row)
     (docs / "fig-peg-obs.png").write_bytes(b"an earlier report's figure, of runs this one has not got")
     (docs / "results-notes.md").write_text("How they were made.\n\n## Other\n\nMore.\n\n## Table 1\n\nWhy it differs.\n")
-    assert tacrl.command("report", lambda: report.main([str(results / "*"), "--out", str(docs)])) == 0
+    assert cli.command("report", lambda: report.main([str(results / "*"), "--out", str(docs)])) == 0
     text = (docs / "RESULTS.md").read_text()
     at = {k: text.index(k) for k in ("## Table 1", "Why it differs.", "## Table 2", "How they were made.", "## Other\n\nMore.")}
     assert at["## Table 1"] < at["Why it differs."] < at["## Table 2"] < at["How they were made."] < at["## Other\n\nMore."]
@@ -221,7 +222,7 @@ def test_report_is_written_from_an_archive(tiny_run, tmp_path):
     shutil.copytree(results / "run", other)
     (other / "eval.json").write_text(json.dumps({**json.loads((other / "eval.json").read_text()), "world": None}))
     (docs / "RESULTS.md").unlink()
-    assert tacrl.command("report", lambda: report.main([str(results / "*"), "--out", str(docs)])) == 2
+    assert cli.command("report", lambda: report.main([str(results / "*"), "--out", str(docs)])) == 2
     assert not (docs / "RESULTS.md").exists()
 
 
@@ -252,7 +253,7 @@ def test_compare_lists_finished_and_unfinished_runs_and_refuses_two_worlds(tiny_
     other_task = {"peg": "gear", "gear": "peg"}[cfg["task"]]             # the same settings on the other task
     (unfinished / "config.json").write_text(json.dumps({**cfg, "task": other_task}))
     docs = tmp_path / "docs"
-    assert tacrl.command("report", lambda: report.main([f"{tiny_run['dir']},{unfinished}", "--compare", "cmp",
+    assert cli.command("report", lambda: report.main([f"{tiny_run['dir']},{unfinished}", "--compare", "cmp",
                                                          "--out", str(docs)])) == 0
     rows = [ln for ln in (docs / "cmp.md").read_text().splitlines() if ln.startswith("|")][2:]   # under the header
     assert len(rows) == 2 and sum("unfinished" in r for r in rows) == 1 and (docs / "cmp.png").stat().st_size > 0
@@ -261,9 +262,9 @@ def test_compare_lists_finished_and_unfinished_runs_and_refuses_two_worlds(tiny_
     shutil.copytree(tiny_run["dir"], other)
     ev = json.loads((other / "eval.json").read_text())
     (other / "eval.json").write_text(json.dumps({**ev, "world": ev["world"] - 1}))
-    assert tacrl.command("report", lambda: report.main([f"{tiny_run['dir']},{other}", "--compare", "cmp",
+    assert cli.command("report", lambda: report.main([f"{tiny_run['dir']},{other}", "--compare", "cmp",
                                                          "--out", str(docs)])) == 2
-    assert tacrl.command("report", lambda: report.main([tiny_run["dir"], "--compare", "../x"])) == 2
+    assert cli.command("report", lambda: report.main([tiny_run["dir"], "--compare", "../x"])) == 2
 
 
 def test_behaviour_and_view_figures(tiny_run, tmp_path, monkeypatch):
@@ -403,13 +404,13 @@ def test_critics_diagnostics_of_a_run_and_its_compare_row(tiny_run, tmp_path, mo
     monkeypatch.setattr(sim, "MAX_STEPS", SHORT)
     run = tmp_path / "runs" / "run"
     shutil.copytree(tiny_run["dir"], run)
-    assert tacrl.command("critics", lambda: critics.main([str(run), "--resets", "2"])) == 2
-    assert tacrl.command("critics", lambda: critics.main([str(run), "--resets", "6", "--episodes", "1"])) == 0
+    assert cli.command("critics", lambda: critics.main([str(run), "--resets", "2"])) == 2
+    assert cli.command("critics", lambda: critics.main([str(run), "--resets", "6", "--episodes", "1"])) == 0
     c = json.loads((run / "critics.json").read_text())
     assert set(c["probe"]["r2"]) == set(c["probe"]["r2_untrained"]) == {"x", "y", "z", "yaw"}
     assert c["probe"]["features"] == "the actor's encoder"          # tiny_run's critics are privileged
     docs = tmp_path / "docs"
-    assert tacrl.command("report", lambda: report.main([str(run), "--compare", "cmp", "--out", str(docs)])) == 0
+    assert cli.command("report", lambda: report.main([str(run), "--compare", "cmp", "--out", str(docs)])) == 0
     row = [ln for ln in (docs / "cmp.md").read_text().splitlines() if ln.startswith("|")][2]
     assert f"{c['probe']['r2']['x']:.2f} / {c['probe']['r2']['y']:.2f}" in row
 

@@ -30,11 +30,12 @@ import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))   # the core modules, one folder up
+import cli  # noqa: E402
 import evaluate  # noqa: E402
 import policy  # noqa: E402
 import report  # noqa: E402
 import tacrl  # noqa: E402
-from tacrl import ArgError  # noqa: E402
+from cli import ArgError  # noqa: E402
 
 PROBE_SEED = 3000            # episode seeds from evaluate.episode_seed(PROBE_SEED + the run's seed, k)
 TAIL = 60                    # steps before a time-out a transition must be: 0.95^60 = 0.05 of the return unknown
@@ -128,7 +129,7 @@ def q_against_returns(sac, env, cfg, seeds, log):
 
 
 def main(argv=None):
-    ap = tacrl.Parser(description=__doc__.split("\n\n")[0])
+    ap = cli.Parser(description=__doc__.split("\n\n")[0])
     ap.add_argument("runs", help="comma-separated glob patterns of run directories (with policy.pt)")
     ap.add_argument("--resets", type=int, default=200, help="the probe's held-out resets a run (default: 200)")
     ap.add_argument("--episodes", type=int, default=20, help="held-out episodes a run for Q (default: 20)")
@@ -142,7 +143,7 @@ def main(argv=None):
     tacrl.use_cpu(tacrl.Config(device="cpu"))
     for d in dirs:
         out = diagnose(d, a.resets, a.episodes, log=lambda *_: None)
-        tacrl.check_dir_writable(d, "the run dir")
+        cli.check_dir_writable(d, "the run dir")
         with open(os.path.join(d, "critics.json"), "w") as f:
             json.dump(out, f, indent=2)
         print(f"{d}: {json.dumps(out['q_vs_mc'])}; probe R^2 {out['probe']['r2']} (untrained: "
@@ -150,4 +151,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    sys.exit(tacrl.command("critics", main))
+    sys.exit(cli.command("critics", main))

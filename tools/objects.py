@@ -31,6 +31,7 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))   # the core modules, one folder up
+import cli  # noqa: E402
 import contexts  # noqa: E402
 import evaluate  # noqa: E402
 import figures  # noqa: E402
@@ -38,7 +39,7 @@ import report  # noqa: E402
 import scene  # noqa: E402
 import sim  # noqa: E402
 import tacrl  # noqa: E402
-from tacrl import ArgError  # noqa: E402
+from cli import ArgError  # noqa: E402
 
 CONTEXT, ERROR_MM = "objects:test", 20.0
 # --scenes issue: blocks a scene, their side, height and centre's distance from the axis (m)
@@ -259,7 +260,7 @@ def plot_shown(shown, path):
 
 
 def main(argv=None):
-    ap = tacrl.Parser(description=__doc__.split("\n\n")[0])
+    ap = cli.Parser(description=__doc__.split("\n\n")[0])
     ap.add_argument("runs", nargs="?", default="", help="comma-separated glob patterns of run directories (with "
                     "policy.pt) to study")
     ap.add_argument("--episodes", type=int, default=20, help="held-out episodes a run and condition (default: 20)")
@@ -284,7 +285,7 @@ def main(argv=None):
     folder = os.path.join(a.out, a.scenes)
     for d in ([folder] if runs else []) + ([a.docs] if a.docs else []):
         os.makedirs(d, exist_ok=True)
-        tacrl.check_dir_writable(d, "the output folder")
+        cli.check_dir_writable(d, "the output folder")
     for run in runs:
         out = study_run(run, a.episodes, a.scenes)
         res = {"dir": run["dir"], "task": run["cfg"]["task"], "world": sim.WORLD, "scenes": a.scenes,
@@ -297,4 +298,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    sys.exit(tacrl.command("objects", main))
+    sys.exit(cli.command("objects", main))

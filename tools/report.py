@@ -30,6 +30,7 @@ import numpy as np  # noqa: E402
 import torch  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))   # the core modules, one folder up
+import cli  # noqa: E402
 import baselines  # noqa: E402
 import contexts  # noqa: E402
 import evaluate  # noqa: E402
@@ -38,7 +39,7 @@ import rundir  # noqa: E402
 import sweep  # noqa: E402
 import sim  # noqa: E402
 import tacrl  # noqa: E402
-from tacrl import ArgError  # noqa: E402
+from cli import ArgError  # noqa: E402
 
 
 # The paper's numbers, next to which ours stand. Table 1: simulated peg, 20 trials after 200 episodes.
@@ -115,7 +116,7 @@ def load_run(d):
         metrics = rundir.read_metrics(d)
         m = {k: np.array(metrics[k]) for k in ("episode", "return", "success", "sr15", "e_r_mm", "ex_r_mm", "elapsed_s")}
     except (OSError, ValueError, KeyError, TypeError) as e:
-        raise ArgError(f"{d}: a damaged run directory ({tacrl.describe(e)})")
+        raise ArgError(f"{d}: a damaged run directory ({cli.describe(e)})")
     return {"dir": d, "cfg": cfg, "m": m, "eval": ev}
 
 
@@ -354,7 +355,7 @@ def archive_runs(patterns, dest=RESULTS_DIR, log=print):
     evaluations), a run extended since replaces its earlier state (what the run dir no longer holds goes:
     it set its old policy's files aside as *-epN.*); a different run under the same name is refused,
     before anything is copied. Returns the archived directories."""
-    tacrl.check_dir_writable(dest, "--to")
+    cli.check_dir_writable(dest, "--to")
     plan = []
     for d in match_runs(patterns):
         if not os.path.exists(os.path.join(d, "eval.json")):
@@ -408,7 +409,7 @@ def note(notes, title):
 
 def write_report(patterns, out_dir="docs", log=print):
     """docs/RESULTS.md and its figures from run directories (glob patterns, comma-separated), all of one world."""
-    tacrl.check_dir_writable(out_dir, "--out")
+    cli.check_dir_writable(out_dir, "--out")
     runs = [load_run(d) for d in match_runs(patterns)]
     world = world_of(runs, patterns)
     os.makedirs(out_dir, exist_ok=True)
@@ -645,7 +646,7 @@ def training_of(run):
 
 def ours_runs(patterns, out_dir):
     """The finished runs of ours (task attention) and of its full view made in this world, trained in 'train'."""
-    tacrl.check_dir_writable(out_dir, "--out")
+    cli.check_dir_writable(out_dir, "--out")
     runs = [load_run(d) for d in match_runs(patterns)]
     os.makedirs(out_dir, exist_ok=True)
     runs = [r for r in runs if r["eval"] and r["eval"].get("world") == sim.WORLD and r["cfg"]["roi"] in VIEWS
@@ -801,7 +802,7 @@ def write_compare(patterns, out_dir, name, log=print):
     (settings, seed, episodes, where the curriculum stood and when it first reached the final range, the
     evaluation, minutes), and their curves grouped by setting, to out_dir/<name>.md and <name>.png. Runs of
     two worlds are refused: their numbers cannot share a table."""
-    tacrl.check_dir_writable(out_dir, "--out")
+    cli.check_dir_writable(out_dir, "--out")
     runs = [load_run(d) for d in match_runs(patterns)]
     world = world_of(runs, patterns)     # (an unfinished run has no world of its own: it is read as of this one)
     os.makedirs(out_dir, exist_ok=True)
@@ -840,7 +841,7 @@ def write_compare(patterns, out_dir, name, log=print):
 
 
 def main(argv=None):
-    ap = tacrl.Parser(description=__doc__.split("\n\n")[0])
+    ap = cli.Parser(description=__doc__.split("\n\n")[0])
     ap.add_argument("runs", nargs="?", help=f"comma-separated glob patterns of run directories (default: {REPORT_RUNS}; "
                     f"with --contexts or --families, {CONTEXT_RUNS})")
     ap.add_argument("--archive", action="store_true", help="copy the finished runs' small files to --to instead")
@@ -873,4 +874,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    sys.exit(tacrl.command("report", main))
+    sys.exit(cli.command("report", main))

@@ -25,9 +25,10 @@ if __name__ == "__main__":     # Ctrl-C while torch and pybullet load: one line 
     signal.signal(signal.SIGINT, lambda *_: (sys.stderr.write("\nsweep: interrupted\n"), os._exit(130)))
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))   # the core modules, one folder up
+import cli  # noqa: E402
 import rundir  # noqa: E402
 import tacrl  # noqa: E402
-from tacrl import ArgError  # noqa: E402
+from cli import ArgError  # noqa: E402
 
 # The paper's experiments (Sec. 5.1.2-5.1.5), each a list of tacrl.py flag lists, one a learned row; every
 # row of an experiment trains for the same number of episodes (--stop-held 0: no stopping when learned),
@@ -77,7 +78,7 @@ def plan(experiments, seeds, root, flags=()):
 
 def config_of(argv):
     """tacrl.py's flags -> the run's Config (ArgError for a mistake in them)."""
-    return tacrl.Config(**tacrl.parse(tacrl.Config, argv, ""))
+    return tacrl.Config(**cli.parse(tacrl.Config, argv, ""))
 
 
 def run_name(cfg):
@@ -94,7 +95,7 @@ def job_of(run_dir, argv, cfg):
     try:
         old = tacrl.read_config(run_dir)
     except (OSError, ValueError) as e:
-        raise ArgError(f"{run_dir}: a damaged run directory ({tacrl.describe(e)}); move it away to run it again")
+        raise ArgError(f"{run_dir}: a damaged run directory ({cli.describe(e)}); move it away to run it again")
     differ = [k for k, v in vars(cfg).items()
               if k not in (*tacrl.RESUME_MAY_SET, "run_dir", "device") and getattr(old, k) != v]
     if differ:
@@ -201,7 +202,7 @@ def run_ray(jobs, address, threads, log=lambda m: print(m, flush=True), init=Non
         try:
             ray.init(log_to_driver=False, **kw)
         except ConnectionError as e:
-            raise ArgError(f"--ray {address}: no Ray cluster there ({tacrl.describe(e)})")
+            raise ArgError(f"--ray {address}: no Ray cluster there ({cli.describe(e)})")
     ray.cloudpickle.register_pickle_by_value(sys.modules[__name__])    # the task travels by value: no module to import there
     task = ray.remote(num_cpus=threads, max_retries=0)(run_job)
     pending = {task.remote(command(j, threads), j.run_dir, thread_env(threads), os.getcwd()): j for j in jobs}  # paths as here
@@ -225,7 +226,7 @@ def main(argv=None):
     argv = sys.argv[1:] if argv is None else list(argv)
     flags = argv[argv.index("--") + 1:] if "--" in argv else []
     argv = argv[:argv.index("--")] if "--" in argv else argv
-    ap = tacrl.Parser(description=__doc__.split("\n\n")[0])
+    ap = cli.Parser(description=__doc__.split("\n\n")[0])
     ap.add_argument("experiments", nargs="?", default="", help=f"comma-separated, of {', '.join(EXPERIMENTS)}; "
                     "or none, and tacrl.py's flags after --")
     ap.add_argument("--seeds", default=",".join(map(str, SEEDS)),
@@ -272,10 +273,10 @@ def main(argv=None):
         done = run_local(todo, parallel, a.threads)
     failed = [j.run_dir for j, code in done if code]
     if failed:
-        raise tacrl.Failed(f"{len(failed)} of {len(todo)} runs failed (see their {rundir.LOG}): {', '.join(failed)}; "
+        raise cli.Failed(f"{len(failed)} of {len(todo)} runs failed (see their {rundir.LOG}): {', '.join(failed)}; "
                            "the same command resumes them")
     return 0
 
 
 if __name__ == "__main__":
-    sys.exit(tacrl.command("sweep", main))
+    sys.exit(cli.command("sweep", main))
