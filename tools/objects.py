@@ -21,6 +21,7 @@ and any contact between the tool and the objects. The scenes: the `objects` fami
 import contextlib
 import json
 import os
+import re
 import signal
 import sys
 
@@ -206,10 +207,13 @@ def write_docs(out, docs, log=print):
           "noise); the hand-designed part alone, which sees no image (hand); and the same with the objects moved 5 m "
           "away, the same bodies in the solver but out of reach (hand-away). Each cell: the mean over the runs (seeds) "
           "with a 95 % bootstrap interval over them, then each run's."]
-    for sc, task in sorted({(r["scenes"], r["task"]) for r in results}, key=lambda k: (list(SCENES).index(k[0]), k[1])):
-        mine = [r for r in results if (r["scenes"], r["task"]) == (sc, task)]
+    setting = lambda r: re.sub(r"-s\d+$", "", os.path.basename(os.path.normpath(r["dir"])))  # noqa: E731
+    groups = sorted({(r["scenes"], r["task"], setting(r)) for r in results},
+                    key=lambda k: (list(SCENES).index(k[0]), k[1], "imgnorm" not in k[2], k[2]))
+    for sc, task, name in groups:
+        mine = [r for r in results if (r["scenes"], r["task"], setting(r)) == (sc, task, name)]
         rows = [r["summary"] for r in mine]
-        md += ["", f"## {task}, {SCENES[sc]}", "",
+        md += ["", f"## {task}, `{name}`, {SCENES[sc]}", "",
                f"{len(mine)} runs, {rows[0]['episodes']} episodes each a condition: "
                + ", ".join(f"`{os.path.basename(os.path.normpath(r['dir']))}`" for r in mine) + ".", "",
                "| measure | mean over runs (95 % interval) | per run |", "|---|---|---|"]
@@ -232,7 +236,7 @@ def write_docs(out, docs, log=print):
         line("action shift, every step", "shift")
         for c in CONDITIONS[:3]:
             line(f"episodes in which the tool touched an object ({c})", f"touched_{c}", "{:.0f}")
-        fig = f"fig-objects-{sc}-{task}.png"
+        fig = f"fig-objects-{sc}-{name}.png"
         md += ["", f"![{task}: first images with the objects, without them, and the saliency]({fig})", "",
                f"*{task}, `{os.path.basename(os.path.normpath(mine[0]['dir']))}`: the first image of its first {SHOWN} "
                "episodes (the task ROI at the start, 80 x 80), the same without the objects, and the saliency of the "
