@@ -45,7 +45,8 @@ def parse(config_cls, argv, description):
     for f in dataclasses.fields(config_cls):
         flag = "--" + f.name.replace("_", "-")
         lo, hi = f.metadata["bounds"] or (None, None)
-        bounds = "" if f.metadata["bounds"] is None else f"; {lo if lo is not None else ''}..{hi if hi is not None else ''}"
+        bounds = "" if f.metadata["bounds"] is None else \
+            f"; {lo if lo is not None else ''}..{hi if hi is not None else ''}"
         hlp = f.metadata["help"] + (f" (default: {f.default}{bounds})" if f.default not in ("", False) else "")
         if f.type is bool:
             ap.add_argument(flag, action="store_true", default=argparse.SUPPRESS, help=hlp)

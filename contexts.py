@@ -197,7 +197,7 @@ def context_of(name, task="peg"):
     if name in CONTEXTS:
         return CONTEXTS[name]
     family, _, seed = name.partition(":")
-    if family in FAMILIES and (seed.isdigit() or seed == "test"):   # test: the first held-out scene, until the env draws
+    if family in FAMILIES and (seed.isdigit() or seed == "test"):   # test: the first held-out scene, as the env's
         return family_context(family, int(seed) if seed.isdigit() else FAMILY_TEST_SEED0, task)
     raise ValueError(f"unknown context {name!r} ({', '.join(CONTEXTS)}, or FAMILY:SEED or FAMILY:test with FAMILY "
                      f"one of {', '.join(FAMILIES)})")
@@ -209,9 +209,9 @@ def context_key(name, task="peg"):
         objects = (OBJECT_SIDE, OBJECT_TALL, OBJECT_RING, OBJECTS_PER_SCENE, OBJECT_GAP, OBJECT_VALUE, GEAR_REACH)
         added = {"objects": objects, "mixed": objects,             # the older families' keys stay as they were
                  "touch": (TOUCH_FRICTION, TOUCH_CLEARANCE, TOUCH_TILT, TOOL_FRICTION)}
-        return repr((name, task, FAMILY_TEST_SEED0, PLACE_RING, PLACE_X, PLACE_Y, PLACE_YAW, LIGHT_ELEVATION, LIGHT_AMBIENT,
-                     LIGHT_DIFFUSE, KELVIN_RGB, TABLE_VALUE, BOARD_VALUE, MAX_SATURATION, LOOSE_PARTS, PART_COLOURS,
-                     PARTS_PER_SCENE, BOARD_HALF) + added.get(held_out_family(name), ()))
+        return repr((name, task, FAMILY_TEST_SEED0, PLACE_RING, PLACE_X, PLACE_Y, PLACE_YAW, LIGHT_ELEVATION,
+                     LIGHT_AMBIENT, LIGHT_DIFFUSE, KELVIN_RGB, TABLE_VALUE, BOARD_VALUE, MAX_SATURATION, LOOSE_PARTS,
+                     PART_COLOURS, PARTS_PER_SCENE, BOARD_HALF) + added.get(held_out_family(name), ()))
     c = context_of(name, task)
     touch = (c.friction, c.clearance, c.tilt)
     return repr(c) + (f" touch={touch}" if touch != (None, None, (0.0, 0.0)) else "")

@@ -36,7 +36,8 @@ def load_policy(path, device="cpu"):
 
 
 def eval_env(task, act, context="train", roi="task", clearance_mm=0.1, e_r_mm=0.0, gui=False):
-    """The env to evaluate `act` in; a TrainedPolicy's at the Ex_r, ROI and X_i it was trained for, with its guidance."""
+    """The env to evaluate `act` in; a TrainedPolicy's at the Ex_r, ROI and X_i it was trained for, with its
+    guidance."""
     m = act.meta if isinstance(act, policy.TrainedPolicy) else {}
     return sim.AssemblyEnv(task, context, e_r=e_r_mm / 1000, ex_r=m.get("ex_r"), roi=roi, clearance=clearance_mm / 1000,
                            gui=gui, base_policy=not m.get("vanilla", False), e_r_max=m.get("e_r_max"),
@@ -69,8 +70,9 @@ def evaluate(env, act, episodes, seed, video=None, log=print):
         if term:
             times.append(info["t"])
         el = time.time() - t0
-        log(f"episode {ep + 1}/{episodes}  success {int(term)}  time {info['t']:5.1f}s  return {ret:7.1f}  |F|max x/y/z "
-            f"{peak[0]:5.1f}/{peak[1]:5.1f}/{peak[2]:5.1f} N  elapsed {el:5.0f}s  ETA {el / (ep + 1) * (episodes - ep - 1):4.0f}s")
+        eta = el / (ep + 1) * (episodes - ep - 1)
+        log(f"episode {ep + 1}/{episodes}  success {int(term)}  time {info['t']:5.1f}s  return {ret:7.1f}  "
+            f"|F|max x/y/z {peak[0]:5.1f}/{peak[1]:5.1f}/{peak[2]:5.1f} N  elapsed {el:5.0f}s  ETA {eta:4.0f}s")
     forces = np.array(forces)
     mean_std = lambda x: [float(np.mean(x)), float(np.std(x))] if len(x) else None   # noqa: E731 (None: no success)
     return {"success_rate": float(np.mean(succ)), "completion_time_s": mean_std(times),
@@ -93,14 +95,15 @@ def evaluate_levels(env, act, levels, episodes, seed, log=lambda row: None):
 
 
 def format_row(name, row):
-    ms = lambda k, f="{:.2f}": "-" if row[k] is None else f"{f.format(row[k][0])} +- {f.format(row[k][1])}"  # noqa: E731
+    def ms(k, f="{:.2f}"):
+        return "-" if row[k] is None else f"{f.format(row[k][0])} +- {f.format(row[k][1])}"
     return (f"{'policy':<22} {'SR':>5}  {'CT (s)':>14}  {'Fx (N)':>14}  {'Fy (N)':>14}  {'Fz (N)':>14}  {'CR':>16}\n"
             f"{name:<22} {row['success_rate']:5.2f}  {ms('completion_time_s'):>14}  {ms('contact_force_x_N'):>14}  "
             f"{ms('contact_force_y_N'):>14}  {ms('contact_force_z_N'):>14}  {ms('cumulative_reward', '{:.1f}'):>16}")
 
 
 # ---------------------------------------------------------------- a video a browser plays
-VIDEO_CODECS = {".webm": ("VP90", "VP9"), ".mp4": ("avc1", "H.264")}   # what browsers play (MDN's web video codec guide)
+VIDEO_CODECS = {".webm": ("VP90", "VP9"), ".mp4": ("avc1", "H.264")}   # what browsers play (MDN's video codec guide)
 
 
 def open_video(path, size, fps=sim.POLICY_HZ):

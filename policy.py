@@ -65,10 +65,10 @@ IMAGE_NORMS = ("fixed", "image")
 
 
 def pixels(img, norm="fixed"):
-    """(B, 80, 80) uint8 -> (B, 1, 80, 80) float: x / 255 - 0.5 (fixed), or (image, ours) each image minus its mean
-    over its standard deviation (+ one grey level, for a flat image), so that light or paint that scales and shifts the grey
-    levels leaves the input as it was: the normalisation of normalised cross-correlation, a classic of template
-    matching under changing light (e.g. Lewis 1995)."""
+    """(B, 80, 80) uint8 -> (B, 1, 80, 80) float: x / 255 - 0.5 (fixed), or (image, ours) each image minus its
+    mean over its standard deviation (+ one grey level, for a flat image), so that light or paint that scales and
+    shifts the grey levels leaves the input as it was: the normalisation of normalised cross-correlation, a classic
+    of template matching under changing light (e.g. Lewis 1995)."""
     x = img.unsqueeze(1).float() / 255.0
     if norm == "image":
         return (x - x.mean((2, 3), keepdim=True)) / (x.std((2, 3), keepdim=True) + 1 / 255)

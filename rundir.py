@@ -184,7 +184,8 @@ class ReplayFiles:
             try:
                 # opened here: np.load leaves a damaged zip's file open, and Python warns of it
                 with open(path, "rb") as f, np.load(f, allow_pickle=False) as z:
-                    ep = {"obs": {k: z["obs_" + k] for k in buf.obs}, "act": z["act"], "rew": z["rew"], "term": z["term"]}
+                    ep = {"obs": {k: z["obs_" + k] for k in buf.obs},
+                          **{k: z[k] for k in ("act", "rew", "term")}}
                 if len(ep["act"]) != T or any(len(v) != T + 1 for v in ep["obs"].values()):
                     raise ValueError(f"{len(ep['act'])} transitions, not {T}")
             except Exception as e:
@@ -309,8 +310,8 @@ class Run:
         self.files.prune()                           # only now: the last checkpoint still needed those files
         self.log(f"ep {row['episode']:4d}/{self.cfg.train_episodes}  R {row['return']:7.1f}  succ {row['success']}  "
                  f"sr15 {row['sr15']:4.2f}  E_r {row['e_r_mm']:4.1f}mm  Ex_r {row['ex_r_mm']:4.1f}mm  delta "
-                 f"{row['delta']:5.3f}  steps {row['steps']:3d}  env {env_s:4.1f}s  upd {update_s:4.1f}s ({threads} thr)"
-                 f"  elapsed {fmt_time(self.seconds())}  ETA {fmt_time(self.eta())}")
+                 f"{row['delta']:5.3f}  steps {row['steps']:3d}  env {env_s:4.1f}s  upd {update_s:4.1f}s "
+                 f"({threads} thr)  elapsed {fmt_time(self.seconds())}  ETA {fmt_time(self.eta())}")
 
     def eta(self):
         return eta_seconds(self.episode, self.cfg.train_episodes, self.cfg.warmup, self.laps["env"], self.update_s,

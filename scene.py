@@ -106,9 +106,10 @@ JOINT_TORQUE_CAP = [10.0, 10.0, 10.0, 2.0, 2.0, 2.0]  # N m: the motors' limits 
 # travels 2 x CONTACT_SLOP more than the geometry allows. Holes and bores are made that much tighter,
 # so that the play the part meets is the nominal clearance (tests/instruments.py measures it).
 CONTACT_SLOP = 1e-5
-# Friction: Bullet multiplies the two bodies' lateralFriction. The tool and the gear's shaft keep URDF's default (a
-# lateralFriction given with collisionMargin in one changeDynamics call is ignored); every other body has BOARD_FRICTION,
-# so the peg slides on the board at 0.15 and the gear's bore on the shaft at 0.25 (tests/instruments.sliding_friction)
+# Friction: Bullet multiplies the two bodies' lateralFriction. The tool and the gear's shaft keep URDF's default
+# (a lateralFriction given with collisionMargin in one changeDynamics call is ignored); every other body has
+# BOARD_FRICTION: the peg slides on the board at 0.15, the gear's bore on the shaft at 0.25 (measured:
+# tests/instruments.sliding_friction)
 TOOL_FRICTION, BOARD_FRICTION = 0.5, 0.3
 PEG_RADIUS = 0.008
 PEG_LENGTH = 0.050
@@ -149,11 +150,13 @@ ORANGE, BRASS, TEAL = (0.95, 0.5, 0.1, 1), (0.8, 0.65, 0.2, 1), (0.1, 0.5, 0.55,
 # The workcell, fixed on the table in every context, as boxes (half extents, centre; m): a low fence
 # (the paper's "edge of the tray", Fig. 1) around the training place, a floor-tape line, and spare
 # workpieces; what the full view shows around the board differs from place to place.
-FENCE, TAPE, PART_BLUE, PART_GREY = (0.25, 0.3, 0.38, 1), (0.9, 0.78, 0.1, 1), (0.2, 0.35, 0.7, 1), (0.45, 0.45, 0.48, 1)
+FENCE, TAPE = (0.25, 0.3, 0.38, 1), (0.9, 0.78, 0.1, 1)
+PART_BLUE, PART_GREY = (0.2, 0.35, 0.7, 1), (0.45, 0.45, 0.48, 1)
 WORKCELL = [((0.004, 0.124, 0.010), (0.386, 0.0, 0.010), FENCE), ((0.004, 0.124, 0.010), (0.614, 0.0, 0.010), FENCE),
             ((0.114, 0.004, 0.010), (0.5, 0.12, 0.010), FENCE), ((0.114, 0.004, 0.010), (0.5, -0.12, 0.010), FENCE),
             ((0.010, 0.45, 0.0005), (0.26, 0.0, 0.0005), TAPE),
-            ((0.03, 0.03, 0.02), (0.35, 0.31, 0.02), PART_BLUE), ((0.025, 0.04, 0.015), (0.47, -0.34, 0.015), PART_GREY),
+            ((0.03, 0.03, 0.02), (0.35, 0.31, 0.02), PART_BLUE),
+            ((0.025, 0.04, 0.015), (0.47, -0.34, 0.015), PART_GREY),
             ((0.04, 0.025, 0.03), (0.62, 0.37, 0.03), ORANGE), ((0.02, 0.02, 0.05), (0.20, -0.22, 0.05), TEAL)]
 
 
@@ -291,7 +294,8 @@ def _urdf_cylinder(r, z0, z1, rgba):
 def tool_xml(task, clearance):
     """The tool link's contents (tool frame: z down along the tool, origin at the sensor face).
     Returns (xml, tip_offset): the tool tip sits at (0, 0, tip_offset) in the tool frame."""
-    inertial = '<inertial><origin xyz="0 0 0"/><mass value="0.1"/><inertia ixx="5e-5" iyy="5e-5" izz="5e-5" ixy="0" ixz="0" iyz="0"/></inertial>'
+    inertial = ('<inertial><origin xyz="0 0 0"/><mass value="0.1"/>'
+                '<inertia ixx="5e-5" iyy="5e-5" izz="5e-5" ixy="0" ixz="0" iyz="0"/></inertial>')
     if task == "peg":
         # Collision: PEG_BLADES thin boxes (blades) through the axis, turned by pi / PEG_BLADES: their
         # 2 x PEG_BLADES flat ends approximate the round peg. Bullet's cylinders keep a ~1 mm rounded
@@ -478,7 +482,8 @@ class World:
             # the top ring reaches under the plate (its 20 mm outer radius against the 12 mm half-side
             # opening): coplanar tops, so it takes the plate's colour, or TinyRenderer z-fights them
             # into view-dependent stripes
-            parts += [(he, pos, R, board) for he, pos, R in ring_boxes(r_h + CHAMFER, 0.012 - CHAMFER, -CHAMFER, 0.0, 16)]
+            top_ring = ring_boxes(r_h + CHAMFER, 0.012 - CHAMFER, -CHAMFER, 0.0, 16)
+            parts += [(he, pos, R, board) for he, pos, R in top_ring]
             parts.append(((0.02, 0.02, (t - HOLE_DEPTH) / 2), (0, 0, -(t + HOLE_DEPTH) / 2), np.eye(3), BLACK))
             bumps = self._compound([(rho, c, np.eye(3), board) for rho, c in board_bumps(r_h + CHAMFER + 3e-4)],
                                    p.GEOM_SPHERE)                          # in the board's colour, as the plate
@@ -488,7 +493,8 @@ class World:
         c = GEAR_CENTRES
         teeth = gear_teeth(GEAR_R_ROOT, GEAR_R_TIP, TOOTH_WIDTH, GEAR_TEETH, 0.0, GEAR_THICK, phase=np.pi / GEAR_TEETH)
         parts = [(he, (pos[0] + c, pos[1], pos[2]), R, TEAL) for he, pos, R in teeth]
-        parts.append(((GEAR_R_ROOT * 0.95, GEAR_R_ROOT * 0.95, GEAR_THICK / 2), (c, 0, GEAR_THICK / 2), np.eye(3), TEAL))
+        hub = (GEAR_R_ROOT * 0.95, GEAR_R_ROOT * 0.95, GEAR_THICK / 2)
+        parts.append((hub, (c, 0, GEAR_THICK / 2), np.eye(3), TEAL))
         bc = self.bc
         col = bc.createCollisionShape(p.GEOM_CYLINDER, radius=SHAFT_RADIUS, height=SHAFT_HEIGHT)
         vis = bc.createVisualShape(p.GEOM_CYLINDER, radius=SHAFT_RADIUS, length=SHAFT_HEIGHT, rgbaColor=DARK)

@@ -56,7 +56,8 @@ ZETA = 1.0                                          # damping ratio, B = 2 zeta 
 # The vanilla baseline's damping (no K, no estimated poses): the guided controller's B at the final range with
 # X^_i over X^_g (W = E_R_FINAL, EX_ROT, E_ROT_FINAL): a full F_d of 5 N moves the tool 35 mm/s, as the guided
 # one at 20 mm. Ours, one constant for every episode.
-B_FREE = ctl.critical_damping(ctl.stiffness(F_MAX6, np.array([E_R_FINAL] * 3 + list(EX_ROT) + [E_ROT_FINAL])), MASS, ZETA)
+B_FREE = ctl.critical_damping(ctl.stiffness(F_MAX6, np.array([E_R_FINAL] * 3 + list(EX_ROT) + [E_ROT_FINAL])),
+                              MASS, ZETA)
 # Fig. 11's windows, (height, width) in px of the paper's 800 x 800 view. Its ROI-300 is the view "with suitable task
 # attention" (Fig. 8b), every feature within the largest error; ROI-200 "covers more features but not all in maximum
 # error"; ROI-100*160 "does not cover the main task features" (Sec. 5.1.4). Our camera (scene.CAM_FOV) sees the task at
@@ -180,10 +181,11 @@ def hole_keypoint(img):
 class AssemblyEnv(gymnasium.Env if gymnasium else object):
     """Residual-RL assembly env (Algorithm 1's 'interact with environment').
 
-    task: 'peg' or 'gear'; context: a name in CONTEXTS, FAMILY:SEED (one scene of a family, contexts.FAMILIES) or
-    FAMILY:test (a held-out scene of the family drawn each episode); randomize: families whose training scenes
-    (seeds below contexts.FAMILY_TEST_SEED0) each episode draws from, in place of the context; e_r: guidance error range E_r (m, x y z;
-    the rotation error about z scales with it, E_ROT_FINAL at E_R_FINAL); ex_r: exploration range
+    task: 'peg' or 'gear'; context: a name in contexts.CONTEXTS, FAMILY:SEED (one scene of a family,
+    contexts.FAMILIES) or FAMILY:test (a held-out scene of the family drawn each episode); randomize: families
+    whose training scenes (seeds below contexts.FAMILY_TEST_SEED0) each episode draws from, in place of the
+    context; e_r: guidance error range E_r (m, x y z; the rotation error about z scales with it, E_ROT_FINAL at
+    E_R_FINAL); ex_r: exploration range
     Ex_r (m), sets K through Eq. 8-9, floored at EX_MIN; roi: 'task' (Eq. 11) or a preset name;
     clearance: diametral clearance, m; e_r_max: the largest E_r this env will be set to (at least
     E_R_FINAL and e_r): Eq. 11's ROI covers it, and X_i is raised where needed so that its z error
@@ -191,9 +193,9 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
     base_policy: False removes the hand-designed part (the vanilla baseline, Sec. 5.1.2: "without a base
     policy"): no trajectory, no spring toward X^_i or X^_g and no stiffness from the estimated poses;
     the residual's F_d alone drives a free admittance (K = 0, the fixed damping B_FREE); what stays is
-    the start at X^_i, the observations, the reward and the curriculum's errors; render_mode: None or 'rgb_array' (render() is the
-    external camera's view); ft_noise, image_noise: the wrist sensor's noise and drift, the camera's
-    shot noise (FT_NOISE, FT_DRIFT, E_PER_DN), on as on a real robot, off for exact tests.
+    the start at X^_i, the observations, the reward and the curriculum's errors; render_mode: None or
+    'rgb_array' (render() is the external camera's view); ft_noise, image_noise: the wrist sensor's noise and
+    drift, the camera's shot noise (FT_NOISE, FT_DRIFT, E_PER_DN), on as on a real robot, off for exact tests.
 
     obs = {'image': (80, 80) uint8, 'pose_hist': (32, 6) float32 [x y z (m) rx ry rz (rad)] of the
     tip relative to X^_g in X^_g's frame, newest last, 'wrench_hist': (32, 6) float32 [F (N), T (N m)]
@@ -219,12 +221,11 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
         self.task, self.context, self.roi_name, self.image_on, self.keypoint = task, context, roi, image, keypoint
         self.base_policy, self.render_mode, self.randomize = base_policy, render_mode, tuple(randomize)
         if gymnasium is not None:
+            hist = lambda b: spaces.Box(np.tile(-b, (HIST, 1)), np.tile(b, (HIST, 1)), dtype=np.float32)  # noqa: E731
+            keypoint_box = spaces.Box(np.float32([-0.5, -0.5, 0, 0]), np.float32([0.5, 0.5, 1, 1]), dtype=np.float32)
             self.observation_space = spaces.Dict({
-                "image": spaces.Box(0, 255, (IMG, IMG), np.uint8),
-                "pose_hist": spaces.Box(np.tile(-POSE_BOUND, (HIST, 1)), np.tile(POSE_BOUND, (HIST, 1)), dtype=np.float32),
-                "wrench_hist": spaces.Box(np.tile(-FT_RANGE, (HIST, 1)), np.tile(FT_RANGE, (HIST, 1)), dtype=np.float32),
-                **({"keypoint": spaces.Box(np.float32([-0.5, -0.5, 0, 0]), np.float32([0.5, 0.5, 1, 1]), dtype=np.float32)}
-                   if keypoint else {})})
+                "image": spaces.Box(0, 255, (IMG, IMG), np.uint8), "pose_hist": hist(POSE_BOUND),
+                "wrench_hist": hist(FT_RANGE), **({"keypoint": keypoint_box} if keypoint else {})})
             self.action_space = spaces.Box(-1.0, 1.0, (6,), np.float32)
         self.world = World(task, clearance, gui, ft_noise, image_noise, ctx)
         self.e_r_max = max(E_R_FINAL, e_r, e_r_max or 0.0)
@@ -255,7 +256,8 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
         w = self.world
         R_b = x_g[1] @ R_DOWN
         board = (x_g[0] - R_b @ w.goal_in_board(), R_b)
-        box = lambda e_r: roi_box(w, x_i, board, e_r, E_ROT_FINAL * (e_r / E_R_FINAL), self._alignment_directions())  # noqa: E731
+        dirs = self._alignment_directions()
+        box = lambda e_r: roi_box(w, x_i, board, e_r, E_ROT_FINAL * (e_r / E_R_FINAL), dirs)  # noqa: E731
         if self.roi_name == "task":
             return box(self.e_r_max)
         if self.roi_name == "full":
@@ -276,7 +278,8 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
         w, ctx = self.world, self._episode_context()
         w.rebuild(ctx)                 # every episode in a fresh world: it depends on its seed only
         scale = np.array([self.e_r] * 3 + [E_ROT_FINAL * self.e_r / E_R_FINAL])
-        e = np.asarray(options["error"], float) if "error" in options else self.np_random.uniform(-1, 1, 4) * scale  # Eq. 13
+        e = np.asarray(options["error"], float) if "error" in options else \
+            self.np_random.uniform(-1, 1, 4) * scale                                                    # Eq. 13
         w.noise_rng = np.random.default_rng(self.np_random.integers(2 ** 63))     # this episode's sensor noise
         self.x_g, self.x_i = w.place(ctx, np.asarray(options.get("goal_shift", np.zeros(4)), float), self.approach)
         R_e, e_w = ctl.rot_z(e[3]), self.x_g[1] @ R_DOWN @ e[:3]     # e's offset in world axes
@@ -308,7 +311,8 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
         of the randomized families."""
         family = held_out_family(self.context)
         if family:
-            return family_context(family, FAMILY_TEST_SEED0 + int(self.scene_rng.integers(FAMILY_TEST_SEED0)), self.task)
+            seed = FAMILY_TEST_SEED0 + int(self.scene_rng.integers(FAMILY_TEST_SEED0))
+            return family_context(family, seed, self.task)
         if self.randomize:
             family = self.randomize[self.scene_rng.integers(len(self.randomize))]
             return family_context(family, int(self.scene_rng.integers(FAMILY_TEST_SEED0)), self.task)
