@@ -203,3 +203,15 @@ def test_random_flag_values_give_a_checked_config_or_one_line(flags, here):
         assert cfg.task in ("peg", "gear") and 0 <= cfg.error_mm <= 30 and 0 < cfg.lr < 1 and 0 < cfg.gamma < 1
         assert cfg.seed >= 0 and cfg.buffer >= max(cfg.batch, sim.MAX_STEPS) and cfg.episodes >= 1
     assert snapshot(here) == before
+
+
+def test_the_objects_and_touch_studies_refuse_mistakes_in_one_line(tmp_path, capsys):
+    import objects
+    import touch
+    cases = ((objects, []), (objects, [str(tmp_path / "none*")]), (objects, ["x", "--episodes", "0"]),
+             (objects, ["--docs", str(tmp_path), "--out", str(tmp_path / "empty")]),
+             (touch, [str(tmp_path / "none")]), (touch, [str(tmp_path), "--episodes", "0"]))
+    for mod, argv in cases:
+        assert cli.command(mod.__name__, lambda: mod.main(argv)) == 2, argv
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and err.startswith(f"{mod.__name__}: error:"), (argv, err)
