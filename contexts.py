@@ -164,6 +164,16 @@ def tool_reach(task, top):
     return GEAR_REACH if top > SHAFT_HEIGHT - OBJECT_GAP else GEAR_R_TIP
 
 
+def box_gap(p, xy, he):
+    """The distance (m) from point p to a box centred at xy with half extents he, in the board's plane."""
+    return np.hypot(*np.maximum(np.abs(np.subtract(p, xy)) - he[:2], 0.0))
+
+
+def overlaps(xy, he, others, gap=0.0):
+    """Whether a box (centre xy, half extents he) comes within `gap` of any of `others`, (he, xy, rgba) each."""
+    return any(np.all(np.abs(np.subtract(xy, o[1])) < np.add(he[:2], o[0][:2]) + gap) for o in others)
+
+
 def _draw_objects(rng, task, others=()):
     """OBJECTS_PER_SCENE workbench objects (boxes, the board's frame) on the board, beyond the tool's reach, off
     the mating gear and clear of `others` (the scene's parts), added to them."""
@@ -172,13 +182,12 @@ def _draw_objects(rng, task, others=()):
     while len(out) < n:
         he = (*(rng.uniform(*OBJECT_SIDE, 2) / 2), rng.uniform(*OBJECT_TALL) / 2)
         xy = rng.uniform(-BOARD_HALF + np.array(he[:2]), BOARD_HALF - np.array(he[:2]))
-        near = np.hypot(*np.maximum(np.abs(xy) - he[:2], 0.0))              # the axis to the box's nearest side
+        near = box_gap((0.0, 0.0), xy, he)                                 # the axis to the box's nearest side
         if not max(OBJECT_RING[0], tool_reach(task, 2 * he[2]) + OBJECT_GAP) <= near <= OBJECT_RING[1]:
             continue
-        mating = np.hypot(*np.maximum(np.abs(xy - (GEAR_CENTRES, 0.0)) - he[:2], 0))     # the mating gear's axis to it
-        if task == "gear" and mating < GEAR_R_TIP + OBJECT_GAP:
+        if task == "gear" and box_gap((GEAR_CENTRES, 0.0), xy, he) < GEAR_R_TIP + OBJECT_GAP:    # off the mating gear
             continue
-        if any(np.all(np.abs(xy - o[1]) < np.add(he[:2], o[0][:2]) + OBJECT_GAP) for o in out):
+        if overlaps(xy, he, out, OBJECT_GAP):
             continue
         rgba = PART_COLOURS[rng.integers(len(PART_COLOURS))] if rng.random() < 0.5 else _draw_colour(rng, OBJECT_VALUE)
         out.append((_floats(he, 4), _floats(xy, 4), rgba))
@@ -187,13 +196,17 @@ def _draw_objects(rng, task, others=()):
 
 def held_out_family(name):
     """The family of --context FAMILY:test (a held-out scene each episode, the env's to draw), else None."""
+    if isinstance(name, Context):
+        return None
     family, _, which = name.partition(":")
     return family if which == "test" and family in FAMILIES else None
 
 
 def context_of(name, task="peg"):
-    """--context's value -> a Context: a name in CONTEXTS, or FAMILY:SEED (one scene of a family). ValueError
-    for anything else; FAMILY:test (a held-out scene each episode) is the env's to draw."""
+    """--context's value -> a Context: a name in CONTEXTS, or FAMILY:SEED (one scene of a family); a Context is
+    itself. ValueError for anything else; FAMILY:test (a held-out scene each episode) is the env's to draw."""
+    if isinstance(name, Context):
+        return name
     if name in CONTEXTS:
         return CONTEXTS[name]
     family, _, seed = name.partition(":")

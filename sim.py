@@ -182,7 +182,8 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
     """Residual-RL assembly env (Algorithm 1's 'interact with environment').
 
     task: 'peg' or 'gear'; context: a name in contexts.CONTEXTS, FAMILY:SEED (one scene of a family,
-    contexts.FAMILIES) or FAMILY:test (a held-out scene of the family drawn each episode); randomize: families
+    contexts.FAMILIES), FAMILY:test (a held-out scene of the family drawn each episode) or a scene.Context itself;
+    randomize: families
     whose training scenes (seeds below contexts.FAMILY_TEST_SEED0) each episode draws from, in place of the
     context; e_r: guidance error range E_r (m, x y z; the rotation error about z scales with it, E_ROT_FINAL at
     E_R_FINAL); ex_r: exploration range

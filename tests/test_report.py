@@ -96,8 +96,7 @@ def test_the_objects_study_shows_the_policy_the_scene_without_its_objects_and_ch
     block = scene.Context(objects=(((0.01, 0.01, 0.012), (0.045, 0.0), (0.8, 0.1, 0.1, 1)),), on_board=True)
     images = {}
     for name, ctx, twin in (("plain", block, False), ("twin", block, True), ("none", scene.Context(), False)):
-        with sim.AssemblyEnv("peg", e_r=0.02) as env:
-            env._episode_context = lambda c=ctx: c                     # this episode's scene
+        with sim.AssemblyEnv("peg", ctx, e_r=0.02) as env:
             last = {}
             if twin:
                 objects.twin_renders(env, blind=False, last=last)

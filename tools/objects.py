@@ -51,13 +51,18 @@ SHOWN = 4                    # episodes the figure shows
 SMOOTH = 2.0                 # px: the saliency shown is blurred by a Gaussian of this sigma (one pixel's is noise)
 
 
+def send_away(world):
+    """The world's objects moved 5 m under the table, where nothing touches them and no camera sees them."""
+    for b in world.objects:
+        world.bc.resetBasePositionAndOrientation(b, [0.0, 0.0, -5.0], [0.0, 0.0, 0.0, 1.0])
+
+
 @contextlib.contextmanager
 def objects_away(world):
-    """The world's objects moved 5 m under the table for a moment (nothing touches them there), then back."""
+    """The world's objects sent away for a moment, then back."""
     bc = world.bc
     poses = [bc.getBasePositionAndOrientation(b) for b in world.objects]
-    for b in world.objects:
-        bc.resetBasePositionAndOrientation(b, [0.0, 0.0, -5.0], [0.0, 0.0, 0.0, 1.0])
+    send_away(world)
     try:
         yield
     finally:
@@ -67,8 +72,10 @@ def objects_away(world):
 
 def twin_renders(env, blind, last):
     """Make env's world render each ROI image twice, with and without the objects, from the same sensor noise;
-    the env gets the blind one where `blind`, and last['seen'], last['blind'] hold both. The noise stream
-    goes on as after one render, so that `seen` episodes are evaluation's to the bit."""
+    the env gets the blind one where `blind`, and last['seen'], last['blind'] hold both. The noise stream goes on
+    as after one render. Moving the objects away and back is not free: Bullet keeps history across resetBase...
+    (scene.World), so an episode ends a little apart from plain evaluation's (3 of 4 issue scenes did, measured);
+    every condition renders twice, so that all carry the same perturbation."""
     w, render = env.world, env.world.render_roi
 
     def both(roi, size=sim.IMG):
@@ -93,8 +100,7 @@ def issue_scene(rng):
             he = (*(rng.uniform(*side, 2) / 2), rng.uniform(*tall) / 2)
             a, d = rng.uniform(0, 2 * np.pi), rng.uniform(*ring)
             xy = np.array([d * np.cos(a), d * np.sin(a)])
-            if np.all(np.abs(xy) + he[:2] <= contexts.BOARD_HALF) and not any(
-                    np.all(np.abs(xy - o[1]) < np.add(he[:2], o[0][:2])) for o in out):
+            if np.all(np.abs(xy) + he[:2] <= contexts.BOARD_HALF) and not contexts.overlaps(xy, he, out):
                 break
         out.append((tuple(round(float(v), 4) for v in he), tuple(round(float(v), 4) for v in xy),
                     contexts.PART_COLOURS[rng.integers(len(contexts.PART_COLOURS))]))
@@ -107,8 +113,7 @@ def move_away_on_rebuild(world):
 
     def rebuild_away(ctx=None):
         rebuild(ctx)
-        for b in world.objects:
-            world.bc.resetBasePositionAndOrientation(b, [0.0, 0.0, -5.0], [0.0, 0.0, 0.0, 1.0])
+        send_away(world)
     world.rebuild = rebuild_away
 
 
@@ -133,7 +138,7 @@ def study_run(run, episodes, scenes="family", log=print):
     for cond in CONDITIONS:
         with episode_env(run, pi, scenes) as env:
             last = {}
-            twin_renders(env, cond == "blind", last)
+            twin_renders(env, cond == "blind", last)      # in every condition, so that all meet the same physics
             if cond == "hand-away":
                 move_away_on_rebuild(env.world)
             for k in range(episodes):
@@ -205,8 +210,10 @@ def write_docs(out, docs, log=print):
           f"held-out scenes at {ERROR_MM:g} mm (evaluation's seeds) four ways: seeing the objects (seen); blind to "
           "them (the physics holds them, each image the policy gets is rendered without them, with the same sensor "
           "noise); the hand-designed part alone, which sees no image (hand); and the same with the objects moved 5 m "
-          "away, the same bodies in the solver but out of reach (hand-away). Each cell: the mean over the runs (seeds) "
-          "with a 95 % bootstrap interval over them, then each run's."]
+          "away, the same bodies in the solver but out of reach (hand-away). Every condition renders each image twice "
+          "(the objects moved away and back for the blind one), which perturbs Bullet's solver alike in all of them: "
+          "`seen` is evaluation's scene and seeds, not its episodes to the bit. Each cell: the mean over the runs "
+          "(seeds) with a 95 % bootstrap interval over them, then each run's."]
     setting = lambda r: re.sub(r"-s\d+$", "", os.path.basename(os.path.normpath(r["dir"])))  # noqa: E731
     groups = sorted({(r["scenes"], r["task"], setting(r)) for r in results},
                     key=lambda k: (list(SCENES).index(k[0]), k[1], "imgnorm" not in k[2], k[2]))
@@ -288,8 +295,8 @@ def main(argv=None):
         raise ArgError(f"{other[0]}: not trained in world {sim.WORLD} (its eval.json says otherwise)")
     folder = os.path.join(a.out, a.scenes)
     for d in ([folder] if runs else []) + ([a.docs] if a.docs else []):
-        os.makedirs(d, exist_ok=True)
         cli.check_dir_writable(d, "the output folder")
+        os.makedirs(d, exist_ok=True)
     for run in runs:
         out = study_run(run, a.episodes, a.scenes)
         res = {"dir": run["dir"], "task": run["cfg"]["task"], "world": sim.WORLD, "scenes": a.scenes,

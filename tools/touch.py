@@ -44,8 +44,7 @@ def main(argv=None):
     tacrl.use_cpu(tacrl.Config(device="cpu"))
     out = {}
     for name, ctx in SCENES.items():
-        with evaluate.eval_env(run["cfg"]["task"], pi, roi=run["cfg"]["roi"], e_r_mm=20.0) as env:
-            env._episode_context = lambda c=ctx: c
+        with evaluate.eval_env(run["cfg"]["task"], pi, context=ctx, roi=run["cfg"]["roi"], e_r_mm=20.0) as env:
             row = evaluate.evaluate(env, pi, a.episodes, evaluate.EVAL_SEED + run["cfg"]["seed"], log=lambda *_: None)
         out[name] = row["success_rate"]
         print(f"{name:24s} SR at 20 mm {row['success_rate']:.2f}", flush=True)
