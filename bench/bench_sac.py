@@ -19,6 +19,7 @@ import numpy as np
 import torch
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+import command  # noqa: E402
 import policy  # noqa: E402
 import sim  # noqa: E402
 import tacrl  # noqa: E402
@@ -54,7 +55,7 @@ def main():
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--batch", type=int, default=64)
     a = ap.parse_args()
-    tacrl.use_cpu(tacrl.Config(device="cpu"))          # as a run: one torch thread an op, malloc keeping what it frees
+    command.use_cpu()          # as a run: one torch thread an op, malloc keeping what it frees
     rng = np.random.default_rng(0)
     buf = filled_buffer(rng)
     threads = tacrl.make_sac(tacrl.Config(), "cpu").helper.threads

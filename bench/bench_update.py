@@ -22,6 +22,7 @@ import numpy as np
 import torch
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+import command  # noqa: E402
 import policy  # noqa: E402
 import tacrl  # noqa: E402
 from bench_sac import filled_buffer  # noqa: E402
@@ -83,7 +84,7 @@ def main():
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--batch", type=int, default=64)
     a = ap.parse_args()
-    tacrl.use_cpu(tacrl.Config(device="cpu"))          # as a run: one thread an op, malloc keeping what it frees
+    command.use_cpu()          # as a run: one thread an op, malloc keeping what it frees
     rng = np.random.default_rng(0)
     buf = filled_buffer(rng)
     print(f"torch {torch.__version__}, batch {a.batch}, {a.repeats} x {a.updates} calls, medians in ms a call")

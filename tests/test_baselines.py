@@ -5,6 +5,7 @@ import dataclasses
 import numpy as np
 
 import baselines
+import command
 import sim
 import tacrl
 
@@ -74,9 +75,9 @@ def test_ablation_runs_get_run_dirs_of_their_own():
 
 def test_every_training_choice_is_in_the_run_dir_name():
     """One flag changed from its default gives a run dir of its own: no learned run's name is another's."""
-    dirs = {"default": tacrl.default_run_dir(tacrl.Config())}
+    dirs = {"default": command.default_run_dir(tacrl.Config())}
     for f in dataclasses.fields(tacrl.Config):
-        if f.name in tacrl.NOT_LEARNING:
+        if f.name in command.NOT_LEARNING:
             continue
         cfg, meta = tacrl.Config(), f.metadata
         if f.name == "randomize":
@@ -89,5 +90,5 @@ def test_every_training_choice_is_in_the_run_dir_name():
             hi = (meta["bounds"] or (None, None))[1]
             value = f.type(f.default + 1) if hi is None or f.default + 1 < hi else (f.default + hi) / 2
         setattr(cfg, f.name, value)
-        dirs[f.name] = tacrl.default_run_dir(cfg)
+        dirs[f.name] = command.default_run_dir(cfg)
     assert len(set(dirs.values())) == len(dirs), dirs

@@ -24,7 +24,7 @@ def test_every_row_of_an_experiment_trains_the_same_budget_in_a_run_dir_of_its_o
     table1 = [j.run_dir for j in jobs if j.run_dir.startswith(os.path.join("runs", "table1"))]
     assert len(table1) == 12 and all(any(k in d for d in table1) for k in ("vanilla", "-v-", "-ts-ptk-"))
 
-REAL_COMMAND = sweep.command
+REAL_COMMAND = sweep.job_command
 
 
 def stand_in(job, threads):
@@ -39,7 +39,7 @@ def stand_in(job, threads):
 
 def test_a_sweep_runs_here_skips_what_finished_and_resumes_what_stopped(tmp_path, capsys, monkeypatch):
     root = str(tmp_path / "runs")
-    monkeypatch.setattr(sweep, "command", stand_in)
+    monkeypatch.setattr(sweep, "job_command", stand_in)
     dirs = [os.path.join(root, f"peg-ts-ptv-adaptive-e1-u2-w1-b8-buf240-s{s}") for s in (0, 1, 2)]
     for d, state in zip(dirs, ("done", "stopped")):           # s0 finished, s1 stopped: each a run of this plan
         os.makedirs(d)
@@ -82,7 +82,7 @@ def test_a_sweep_runs_as_ray_tasks_on_a_local_instance(tmp_path, monkeypatch):
     every node); stand-in commands, as in the local test."""
     ray = pytest.importorskip("ray", reason="the `ray` extra is not installed")
     jobs = sweep.plan([], [0, 1], str(tmp_path / "runs"), TINY)
-    monkeypatch.setattr(sweep, "command", lambda job, threads: [
+    monkeypatch.setattr(sweep, "job_command", lambda job, threads: [
         sys.executable, "-c", f"import os; print('run', {job.run_dir!r}, os.environ['OMP_NUM_THREADS'], os.getcwd())"])
     monkeypatch.chdir(tmp_path)
     lines = []
@@ -115,7 +115,7 @@ def test_sweep_mistakes_are_one_line_and_exit_2(argv, message, capsys, tmp_path)
 
 
 def test_failed_runs_are_named_and_the_sweep_exits_1(tmp_path, capsys, monkeypatch):
-    monkeypatch.setattr(sweep, "command", lambda job, threads: ["python3", "-c", "import sys; sys.exit(3)"])
+    monkeypatch.setattr(sweep, "job_command", lambda job, threads: ["python3", "-c", "import sys; sys.exit(3)"])
     assert cli.command("sweep", lambda: sweep.main(["--seeds", "0,1", "--root", str(tmp_path), "--", *TINY])) == 1
     err = capsys.readouterr().err
     assert err.startswith("sweep: failed: 2 of 2 runs failed") and "the same command resumes them" in err

@@ -31,6 +31,7 @@ import torch  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))   # the core modules, one folder up
 import cli  # noqa: E402
+import command  # noqa: E402
 import evaluate  # noqa: E402
 import policy  # noqa: E402
 import report  # noqa: E402
@@ -140,7 +141,7 @@ def main(argv=None):
     dirs = [d for d in report.match_runs(a.runs) if os.path.exists(os.path.join(d, "policy.pt"))]
     if not dirs:
         raise ArgError(f"{a.runs!r}: no run with a policy.pt")
-    tacrl.use_cpu(tacrl.Config(device="cpu"))
+    command.use_cpu()
     for d in dirs:
         out = diagnose(d, a.resets, a.episodes, log=lambda *_: None)
         cli.check_dir_writable(d, "the run dir")

@@ -33,13 +33,13 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))   # the core modules, one folder up
 import cli  # noqa: E402
+import command  # noqa: E402
 import contexts  # noqa: E402
 import evaluate  # noqa: E402
 import figures  # noqa: E402
 import report  # noqa: E402
 import scene  # noqa: E402
 import sim  # noqa: E402
-import tacrl  # noqa: E402
 from cli import ArgError  # noqa: E402
 
 CONTEXT, ERROR_MM = "objects:test", 20.0
@@ -285,7 +285,7 @@ def main(argv=None):
         raise ArgError(f"--episodes must be at least 1, not {a.episodes}")
     if not a.runs and not a.docs:
         raise ArgError("name runs to study, or --docs DIR to write the page from the studies in --out")
-    tacrl.use_cpu(tacrl.Config(device="cpu"))
+    command.use_cpu()
     runs = [report.load_run(d) for d in report.match_runs(a.runs) if os.path.exists(os.path.join(d, "policy.pt"))] \
         if a.runs else []
     if a.runs and not runs:

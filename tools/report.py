@@ -32,6 +32,7 @@ import torch  # noqa: E402
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))   # the core modules, one folder up
 import cli  # noqa: E402
 import baselines  # noqa: E402
+import command  # noqa: E402
 import contexts  # noqa: E402
 import evaluate  # noqa: E402
 import figures  # noqa: E402
@@ -146,7 +147,7 @@ def method_of(cfg):
     else:
         name = f"{cfg['obs']}, {cfg['curriculum']} to {cfg['error_mm']:g} mm, roi {cfg['roi']}"
     default = tacrl.Config()
-    named = ("task", "seed", "context", "vanilla", "obs", "curriculum", "roi", "error_mm") + tacrl.NOT_LEARNING
+    named = ("task", "seed", "context", "vanilla", "obs", "curriculum", "roi", "error_mm") + command.NOT_LEARNING
     changed = [f"{f.name} {cfg[f.name]}" for f in dataclasses.fields(default)
                if f.name not in named and f.name in cfg and cfg[f.name] != f.default]
     return name + (f" ({', '.join(changed)})" if changed else "")
@@ -338,7 +339,7 @@ def same_run(d, to):
     try:
         for x in (d, to):
             cfgs.append({k: v for k, v in asdict(tacrl.read_config(x)).items()   # (flags added since: defaults)
-                         if k not in (*tacrl.RESUME_MAY_SET, "run_dir")})        # (a run dir may move)
+                         if k not in (*command.RESUME_MAY_SET, "run_dir")})        # (a run dir may move)
             with open(os.path.join(x, "metrics.csv")) as f:
                 rows.append(list(csv.DictReader(f)))
     except (OSError, ValueError, TypeError, AttributeError):

@@ -26,6 +26,7 @@ if __name__ == "__main__":     # Ctrl-C while torch and pybullet load: one line 
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))   # the core modules, one folder up
 import cli  # noqa: E402
+import command  # noqa: E402
 import rundir  # noqa: E402
 import tacrl  # noqa: E402
 from cli import ArgError  # noqa: E402
@@ -83,7 +84,7 @@ def config_of(argv):
 
 def run_name(cfg):
     """The name of a run's directory under its experiment's folder: tacrl.py's default run dir's."""
-    return os.path.basename(tacrl.default_run_dir(cfg))
+    return os.path.basename(command.default_run_dir(cfg))
 
 
 def job_of(run_dir, argv, cfg):
@@ -97,14 +98,14 @@ def job_of(run_dir, argv, cfg):
     except (OSError, ValueError) as e:
         raise ArgError(f"{run_dir}: a damaged run directory ({cli.describe(e)}); move it away to run it again")
     differ = [k for k, v in vars(cfg).items()
-              if k not in (*tacrl.RESUME_MAY_SET, "run_dir", "device") and getattr(old, k) != v]
+              if k not in (*command.RESUME_MAY_SET, "run_dir", "device") and getattr(old, k) != v]
     if differ:
         raise ArgError(f"{run_dir} holds another run (its {', '.join(differ)} differ): move it away or use another --root")
     done = os.path.exists(os.path.join(run_dir, "eval.json"))
     return Job(run_dir, ["--resume", run_dir], "done" if done else "resume")
 
 
-def command(job, threads):
+def job_command(job, threads):
     return [sys.executable, os.path.join(PROJECT, "tacrl.py"), *job.argv, "--threads", str(threads)]
 
 
@@ -182,7 +183,7 @@ def run_local(jobs, parallel, threads, log=lambda m: print(m, flush=True)):
 
     def start(job):
         progress.started(job)
-        return run_job(command(job, threads), job.run_dir, thread_env(threads), os.getcwd())
+        return run_job(job_command(job, threads), job.run_dir, thread_env(threads), os.getcwd())
     with cf.ThreadPoolExecutor(parallel) as pool:
         pending = {pool.submit(start, j): j for j in jobs}
         return collect(pending, lambda fs: cf.wait(fs, timeout=1.0, return_when=cf.FIRST_COMPLETED)[0],
@@ -205,7 +206,7 @@ def run_ray(jobs, address, threads, log=lambda m: print(m, flush=True), init=Non
             raise ArgError(f"--ray {address}: no Ray cluster there ({cli.describe(e)})")
     ray.cloudpickle.register_pickle_by_value(sys.modules[__name__])    # the task travels by value: no module to import there
     task = ray.remote(num_cpus=threads, max_retries=0)(run_job)
-    pending = {task.remote(command(j, threads), j.run_dir, thread_env(threads), os.getcwd()): j for j in jobs}  # paths as here
+    pending = {task.remote(job_command(j, threads), j.run_dir, thread_env(threads), os.getcwd()): j for j in jobs}  # paths as here
     progress = Progress(len(jobs), log)
     for j in jobs:
         progress.started(j, "queued")          # Ray starts each when a node has its CPUs free
@@ -259,11 +260,11 @@ def main(argv=None):
     cores = os.cpu_count() or 1
     parallel = a.parallel or max(1, cores // a.threads)      # threads x runs <= cores
     if not a.ray:
-        tacrl.warn_oversubscribed("sweep", a.threads, min(parallel, max(1, len(todo))), cores)
+        command.warn_oversubscribed("sweep", a.threads, min(parallel, max(1, len(todo))), cores)
     if a.list or a.dry_run:
         for j in jobs:
             print(f"{j.state:6s}  {j.run_dir}" if a.list else
-                  ("# done: " if j.state == "done" else "") + " ".join(["python", *command(j, a.threads)[1:]]))
+                  ("# done: " if j.state == "done" else "") + " ".join(["python", *job_command(j, a.threads)[1:]]))
         return 0
     print(f"{len(jobs)} runs, {len(jobs) - len(todo)} finished already; {len(todo)} to run "
           + (f"as Ray tasks ({a.ray})" if a.ray else "here"), flush=True)

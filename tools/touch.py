@@ -15,11 +15,11 @@ import numpy as np  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))   # the core modules, one folder up
 import cli  # noqa: E402
+import command  # noqa: E402
 import contexts  # noqa: E402
 import evaluate  # noqa: E402
 import report  # noqa: E402
 import scene  # noqa: E402
-import tacrl  # noqa: E402
 from cli import ArgError  # noqa: E402
 
 T = np.radians(1.0)
@@ -41,7 +41,7 @@ def main(argv=None):
         raise ArgError(f"--episodes must be at least 1, not {a.episodes}")
     run = report.load_run(a.run)
     pi = report.load_policy(run)
-    tacrl.use_cpu(tacrl.Config(device="cpu"))
+    command.use_cpu()
     out = {}
     for name, ctx in SCENES.items():
         with evaluate.eval_env(run["cfg"]["task"], pi, context=ctx, roi=run["cfg"]["roi"], e_r_mm=20.0) as env:

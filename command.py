@@ -1,0 +1,248 @@
+"""command.py: tacrl.py's command line (cli.py holds what every command shares): its flags parsed and checked
+against each other and the files they name, before any work; a run directory's default name and config; --eval's
+run; and how torch uses the CPU. It takes the Config class from its caller and imports nothing of tacrl.py.
+"""
+import importlib
+import json
+import os
+import sys
+import tempfile
+from dataclasses import asdict, fields, replace
+
+import torch
+
+import baselines
+import contexts
+import evaluate
+import policy
+import rundir
+import scene
+import sim
+from cli import ArgError, check_bounds, check_dir_writable, check_new_file, describe, from_dict, parse
+
+RESUME_MAY_SET = ("resume", "train_episodes", "stop_held", "threads", "track")   # to extend a run; nothing else changes
+NOT_LEARNING = ("eval", "resume", "run_dir", "track", "threads", "device", "gui", "episodes", "json", "video", "eval_levels",
+                "train_episodes", "stop_held")     # how a run is run, evaluated or extended, not what it learns
+RUN_NAME_TAGS = (("clearance_mm", "c"), ("updates", "u"), ("warmup", "w"), ("batch", "b"), ("buffer", "buf"),
+                 ("lr", "lr"), ("gamma", "g"), ("target_entropy", "ent"))   # default_run_dir's tail, where not the default
+
+
+def use_cpu(device="cpu"):
+    """Torch on the CPU as tacrl runs it: every op on the thread that calls it (an update's second core is
+    policy.Helper's thread, acting needs one), and malloc keeping what it frees (policy.keep_freed_memory). With
+    torch's default of a thread a core, OpenMP's threads wait for each other at every op: beside one busy program
+    that slowed updates 3-4x on 2 cores (bench/bench_threads.py)."""
+    if device == "cpu":
+        torch.set_num_threads(1)
+        policy.keep_freed_memory()
+
+
+def warn_oversubscribed(prog, threads, processes=1, cores=None):
+    """A warning line on stderr where `processes` runs of `threads` threads an update each ask for more threads
+    than there are cores: they can only take turns, each run slower than alone on a core."""
+    cores = cores or os.cpu_count() or 1
+    if threads * processes > cores:
+        print(f"{prog}: warning: {processes} x {threads} threads an update on {cores} cores: they will take turns "
+              f"(use --threads {max(1, cores // processes)})", file=sys.stderr)
+
+
+def parse_args(config_cls, argv, description):
+    """argv -> a checked Config. A flag that would not apply (a training flag with --eval, or the other way
+    round; with --resume, all but those of RESUME_MAY_SET) is a mistake, not silently ignored."""
+    given = parse(config_cls, argv, description)                    # only the flags on the command line
+    mode = "eval" if "eval" in given else "train"
+    for f in fields(config_cls):
+        if f.name in given and f.metadata["mode"] not in (None, mode):
+            raise ArgError(f"--{f.name.replace('_', '-')} is for {'--eval' if mode == 'train' else 'training'}: it "
+                           f"would have no effect {'when training' if mode == 'train' else 'with --eval'}")
+    if "resume" in given:
+        others = [f"--{k.replace('_', '-')}" for k in given if k not in RESUME_MAY_SET]
+        if others:
+            raise ArgError(f"--resume continues a run as its config.json says: {', '.join(others)} cannot change "
+                           f"it (--train-episodes N extends it)")
+        run_dir = given.pop("resume")
+        cfg = replace(load_config(config_cls, run_dir), **given)
+        saved = episodes_saved(run_dir)          # ckpt.pt lags metrics.csv by the episode in flight at most: refused
+        if cfg.train_episodes < saved - 1:       # here before any env is built (rundir.Run checks the checkpoint)
+            raise ArgError(f"--resume {run_dir!r}: the run has {saved} episodes; --train-episodes "
+                           f"{cfg.train_episodes} is fewer")
+        if os.path.exists(os.path.join(run_dir, "eval.json")) and not set(given) - {"threads", "track"}:
+            raise ArgError(f"--resume {run_dir!r}: the run is finished; extend it with --train-episodes N (and "
+                           f"--stop-held 0 to train past the point where it stopped as learned)")
+    else:
+        cfg = config_cls(**given)
+    check(cfg)
+    return cfg
+
+
+def check(cfg):
+    """Every value, and every file the command will write, before any work starts."""
+    check_bounds(cfg)
+    try:
+        levels = [float(x) for x in cfg.eval_levels.split(",")]
+    except ValueError:
+        levels = []
+    e_r_max = max(cfg.error_mm, sim.E_R_FINAL * 1000)      # the training env's largest range (ROI, X_i), mm
+    randomize = sim.randomize_problem(cfg.families, cfg.context)      # as the env checks it, before any work
+    for bad, msg in [
+            (cfg.eval and cfg.eval not in baselines.NAMES and not os.path.isfile(cfg.eval),
+             f"--eval must be {', '.join(baselines.NAMES)} or an existing policy.pt file, not {cfg.eval!r}"),
+            (cfg.eval == "two-step" and cfg.task != "peg", "--eval two-step is the peg-in-hole baseline (Table 1)"),
+            (not cfg.eval and contexts.held_out_family(cfg.context), f"--context {cfg.context} draws held-out scenes: it is "
+                                                             "for --eval (training draws its own with --randomize)"),
+            (randomize, f"--randomize takes {randomize}, comma-separated, not "
+             f"{cfg.randomize!r}" + (f" with --context {cfg.context}" if cfg.context != "train" else "")),
+            (cfg.obs == "ts-ptk" and cfg.task != "peg", "--obs ts-ptk (keypoint RL) finds the peg board's hole; the "
+                                                        "gear's shaft is no keypoint it finds (Table 1 is the peg's)"),
+            (cfg.critic != "multimodal" and (cfg.critic_extra, cfg.next_encoder, cfg.actor_encoder, cfg.aux_reward,
+                                             cfg.aux_offset, cfg.aux_wrench, cfg.aux_recon, cfg.aux_curl, cfg.enc_lr)
+             != (False, "target", "shared", 0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
+             "--critic-extra, --next-encoder, --actor-encoder, --aux-reward, --aux-offset, --aux-wrench, --aux-recon, "
+             "--aux-curl and --enc-lr change the paper's critics: they need --critic multimodal"),
+            ((cfg.aux_recon or cfg.aux_curl) and cfg.obs not in ("ts-ptv", "v"),
+             f"--aux-recon and --aux-curl read the image: --obs {cfg.obs} has none"),
+            (cfg.drq > 1 and not cfg.shift, f"--drq {cfg.drq} averages over shifted copies: it needs --shift"),
+            (cfg.buffer < max(cfg.batch, sim.MAX_STEPS), f"--buffer {cfg.buffer} must hold an episode ({sim.MAX_STEPS} "
+                                                         f"transitions) and a batch (--batch {cfg.batch})"),
+            (cfg.video and os.path.splitext(cfg.video)[1].lower() not in evaluate.VIDEO_CODECS,
+             f"--video must name a .webm (VP9) or .mp4 (H.264) file, not {cfg.video!r}"),
+            (not levels or not all(0.0 <= x <= e_r_max for x in levels),
+             f"--eval-levels must be comma-separated error ranges in 0..{e_r_max:g} mm (the run's env covers "
+             f"--error-mm, and at least 20), not {cfg.eval_levels!r}"),
+            (cfg.device == "cuda" and not torch.cuda.is_available(), "--device cuda: no CUDA device is available"),
+            (cfg.gui and scene.display_problem(), f"--gui: {scene.display_problem()}")]:
+        if bad:
+            raise ArgError(msg)
+    if cfg.track:
+        try:
+            importlib.import_module("torch.utils.tensorboard")
+        except ImportError:
+            raise ArgError("--track logs to TensorBoard, which is not installed: pip install -e '.[track]'")
+    warn_oversubscribed("tacrl", cfg.threads)
+    for name in [x for x in ("json", "video") if getattr(cfg, x)]:   # written after the work: checked before it
+        check_new_file(getattr(cfg, name), f"--{name}")
+    if cfg.video:                                   # the codec, tried on a scratch file: a format this OpenCV
+        with tempfile.TemporaryDirectory() as tmp:  # cannot write is a mistake before any work, not after it
+            try:
+                probe = evaluate.open_video(os.path.join(tmp, "probe" + os.path.splitext(cfg.video)[1]), (64, 48))
+            except ValueError as e:
+                raise ArgError(f"--video {cfg.video!r}: {e}")
+            with scene.quiet_c_output():
+                probe.release()
+    if cfg.device == "auto":                        # cuda where there is one
+        cfg.device = "cuda" if torch.cuda.is_available() else "cpu"
+    if not cfg.eval:
+        cfg.run_dir = cfg.run_dir or default_run_dir(cfg)
+        check_dir_writable(cfg.run_dir, "--run-dir")
+        left = os.listdir(cfg.run_dir) if os.path.isdir(cfg.run_dir) else []
+        if not cfg.resume and "config.json" in left:
+            raise ArgError(f"{cfg.run_dir!r} already holds a run: continue it with --resume {cfg.run_dir} "
+                           f"or pick another --run-dir")
+        if not cfg.resume and set(left) - {rundir.LOG}:
+            raise ArgError(f"--run-dir {cfg.run_dir!r} is not empty: a new run starts in a new or empty directory")
+
+
+def default_run_dir(cfg):
+    """runs/<task>-[vanilla-]<obs>-<curriculum>[-e<E_r mm>][-roi-<roi>][-ctx-<context>][-<critic>][-aug<s>][-shift<px>][-drq<K>][-rand-<families>][-extra]
+    [-next-online][-norm-modality][-own-actor-enc][-n<steps>][-auxr<w>][-auxo<w>][-img-<encoder>][-imgnorm-<norm>][-qnorm]
+    [-qdrop<p>][-redq<n>][-reset<episodes>][-auxw<w>][-auxi<w>][-curl<w>][-enclr<lr>][-imgf<n>]
+    [-<tag><value> of RUN_NAME_TAGS]-s<seed>:
+    the flags of the baselines, ablations and options are in its name, so that no run overwrites another's directory."""
+    default = type(cfg)                                 # the config's class: its defaults
+    name = f"{cfg.task}-{'vanilla-' if cfg.vanilla else ''}{cfg.obs}-{cfg.curriculum}"
+    name += f"-e{cfg.error_mm:g}" if cfg.error_mm != default.error_mm else ""
+    name += f"-roi-{cfg.roi}" if cfg.roi != "task" else ""
+    name += f"-ctx-{cfg.context}" if cfg.context != default.context else ""
+    name += f"-{cfg.critic}" if cfg.critic != default.critic else ""
+    name += f"-aug{cfg.augment:g}" if cfg.augment else ""
+    name += f"-shift{cfg.shift}" if cfg.shift else ""
+    name += f"-drq{cfg.drq}" if cfg.drq > 1 else ""
+    name += f"-rand-{cfg.randomize.replace(',', '+')}" if cfg.randomize else ""
+    name += "-extra" if cfg.critic_extra else ""
+    name += f"-next-{cfg.next_encoder}" if cfg.next_encoder != default.next_encoder else ""
+    name += f"-norm-{cfg.fusion_norm}" if cfg.fusion_norm != default.fusion_norm else ""
+    name += "-own-actor-enc" if cfg.actor_encoder == "own" else ""
+    name += f"-n{cfg.nstep}" if cfg.nstep > 1 else ""
+    name += f"-auxr{cfg.aux_reward:g}" if cfg.aux_reward else ""
+    name += f"-auxo{cfg.aux_offset:g}" if cfg.aux_offset else ""
+    name += f"-img-{cfg.image_encoder}" if cfg.image_encoder != default.image_encoder else ""
+    name += f"-imgnorm-{cfg.image_norm}" if cfg.image_norm != default.image_norm else ""
+    name += "-qnorm" if cfg.q_norm else ""
+    name += f"-qdrop{cfg.q_dropout:g}" if cfg.q_dropout else ""
+    name += f"-redq{cfg.q_heads}" if cfg.q_heads != default.q_heads else ""
+    name += f"-reset{cfg.reset}" if cfg.reset else ""
+    name += f"-auxw{cfg.aux_wrench:g}" if cfg.aux_wrench else ""
+    name += f"-auxi{cfg.aux_recon:g}" if cfg.aux_recon else ""
+    name += f"-curl{cfg.aux_curl:g}" if cfg.aux_curl else ""
+    name += f"-enclr{cfg.enc_lr:g}" if cfg.enc_lr else ""
+    name += f"-imgf{cfg.image_feat}" if cfg.image_feat != default.image_feat else ""
+    for field, tag in RUN_NAME_TAGS:                    # the scene and SAC's numbers, where not the defaults
+        value = getattr(cfg, field)
+        name += f"-{tag}{value:g}" if value != getattr(default, field) else ""
+    return os.path.join("runs", f"{name}-s{cfg.seed}")
+
+
+def read_config(config_cls, run_dir):
+    """A run's config.json as a Config; OSError, or ValueError if a value is not of its flag's type and choices."""
+    return from_dict(config_cls, rundir.read_config(run_dir))
+
+
+def episodes_saved(run_dir):
+    """The rows of a run's metrics.csv; 0 where it has none, or none that can be read (rundir.Run says why)."""
+    try:
+        return len(rundir.read_metrics(run_dir)["episode"])
+    except (OSError, ValueError, KeyError):
+        return 0
+
+
+def load_config(config_cls, run_dir):
+    try:
+        cfg = read_config(config_cls, run_dir)
+    except NotADirectoryError:
+        raise ArgError(f"--resume {run_dir!r} is a file, not a run directory")
+    except FileNotFoundError:
+        raise ArgError(f"--resume {run_dir!r}: no config.json there (not a run directory)")
+    except (OSError, ValueError) as e:              # a directory named config.json, bad JSON, a wrong type
+        raise ArgError(f"--resume {run_dir!r}: config.json is unreadable ({describe(e)})")
+    cfg.run_dir, cfg.resume, cfg.eval = run_dir, run_dir, ""
+    return cfg
+
+
+def load_policy(path, task, device="cpu"):
+    """--eval's policy.pt, or a one-line mistake: a file that is not one, or one for another task."""
+    try:
+        pi = evaluate.load_policy(path, device)
+    except ValueError as e:
+        raise ArgError(f"--eval {path!r}: {e}")
+    if pi.meta["task"] != task:
+        raise ArgError(f"--eval {path!r}: this policy was trained for --task {pi.meta['task']}, not {task}")
+    return pi
+
+
+def run_evaluation(cfg):
+    """--eval: a policy.pt, the hand-designed policy alone or the two-step baseline, at --error-mm."""
+    pi = None if cfg.eval in baselines.NAMES else load_policy(cfg.eval, cfg.task, cfg.device)
+    if pi is not None and pi.meta["roi"] != cfg.roi:      # its encoder learned that view, not another
+        raise ArgError(f"--eval {cfg.eval!r}: this policy was trained with --roi {pi.meta['roi']}, not {cfg.roi}")
+    if pi is not None and cfg.error_mm > pi.meta["e_r_max"] * 1000 + 1e-6:   # Eq. 11's ROI would widen
+        raise ArgError(f"--error-mm {cfg.error_mm:g}: this policy's view covers {pi.meta['e_r_max'] * 1000:g} mm")
+    print(f"config: {asdict(cfg)}", flush=True)
+    use_cpu(cfg.device)
+    with evaluate.eval_env(cfg.task, pi, cfg.context, cfg.roi, cfg.clearance_mm, cfg.error_mm, cfg.gui) as env:
+        video = evaluate.open_video(cfg.video, env.world.render_external().shape[1::-1]) if cfg.video else None
+        act = pi if pi is not None else baselines.make(cfg.eval, env)
+        if cfg.eval == "two-step":
+            print(f"two-step: calibrated the image -> offset map, median error {act.fit_error * 1000:.2f} mm")
+        try:                                          # the seeds of eval.json
+            row = evaluate.evaluate(env, act, cfg.episodes, evaluate.EVAL_SEED + cfg.seed, video)
+        finally:
+            if video is not None:
+                with scene.quiet_c_output():
+                    video.release()
+        row.update({"task": cfg.task, "policy": cfg.eval, "error_mm": cfg.error_mm, "ex_r_mm": round(env.ex_r * 1000, 3),
+                    "context": cfg.context, "roi": cfg.roi, "seed": cfg.seed})
+    print(evaluate.format_row(f"{cfg.eval if pi is None else 'TA-MRP'} {cfg.task} {cfg.error_mm:g}mm", row))
+    if cfg.json:
+        with open(cfg.json, "w") as f:
+            json.dump(row, f, indent=2)
+        print(f"wrote {cfg.json}")
