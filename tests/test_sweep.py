@@ -96,21 +96,21 @@ def test_a_sweep_runs_as_ray_tasks_on_a_local_instance(tmp_path, monkeypatch):
         assert open(os.path.join(j.run_dir, "train.log")).read().split() == ["run", j.run_dir, "1", str(tmp_path)]
 
 
-@pytest.mark.parametrize("argv, message", [
-    (["nothing"], "no experiment 'nothing'; there are table1"),
-    ([], "name experiments, or give tacrl.py's flags after --"),
-    (["table1", "--", "--task", "gear"], "not both or neither"),
-    (["--", "--task", "peg", "--seed", "3"], "the sweep sets --seed, --run-dir and --threads itself"),
-    (["--seeds", "0,0", "--", "--task", "peg"], "--seeds takes distinct comma-separated values"),
+@pytest.mark.parametrize("argv, names", [     # what the one line names: the flag, or the experiment at fault
+    (["nothing"], "'nothing'"),
+    ([], "--"),
+    (["table1", "--", "--task", "gear"], "--"),
+    (["--", "--task", "peg", "--seed", "3"], "--seed"),
+    (["--seeds", "0,0", "--", "--task", "peg"], "--seeds"),
     (["--", "--task", "peg", "--lr", "2"], "--lr"),
     (["--threads", "0", "--", "--task", "peg"], "--threads"),
     (["--threads", "3", "--", "--task", "peg"], "--threads"),              # an update has two halves
-    (["--seeds", "2,-3", "--", "--task", "peg"], "--seed must be within 0..2147483647, not -3"),   # every seed first
+    (["--seeds", "2,-3", "--", "--task", "peg"], "-3"),                    # every seed checked first
 ])
-def test_sweep_mistakes_are_one_line_and_exit_2(argv, message, capsys, tmp_path):
+def test_sweep_mistakes_are_one_line_and_exit_2(argv, names, capsys, tmp_path):
     assert cli.command("sweep", lambda: sweep.main(["--root", str(tmp_path), *argv])) == 2
     err = capsys.readouterr().err
-    assert err.startswith("sweep: error:") and message in err and err.count("\n") == 1
+    assert err.startswith("sweep: error:") and names in err and err.count("\n") == 1
     assert not os.listdir(tmp_path)
 
 
@@ -118,7 +118,7 @@ def test_failed_runs_are_named_and_the_sweep_exits_1(tmp_path, capsys, monkeypat
     monkeypatch.setattr(sweep, "job_command", lambda job, threads: ["python3", "-c", "import sys; sys.exit(3)"])
     assert cli.command("sweep", lambda: sweep.main(["--seeds", "0,1", "--root", str(tmp_path), "--", *TINY])) == 1
     err = capsys.readouterr().err
-    assert err.startswith("sweep: failed: 2 of 2 runs failed") and "the same command resumes them" in err
+    assert err.startswith("sweep: failed:") and err.count("\n") == 1 and all(d in err for d in ("s0", "s1"))
 
 
 def test_runs_never_ask_for_more_threads_than_cores_and_a_warning_says_where_the_user_does(tmp_path, capsys, monkeypatch):

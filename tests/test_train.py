@@ -110,7 +110,7 @@ def test_track_without_tensorboard_is_one_line_naming_the_extra(monkeypatch, cap
     monkeypatch.setitem(sys.modules, "torch.utils.tensorboard", None)        # as if the extra were not installed
     assert tacrl.main(["--task", "peg", "--track"]) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "pip install -e '.[track]'" in err and not os.path.exists("runs")
+    assert err.count("\n") == 1 and "--track" in err and ".[track]" in err and not os.path.exists("runs")
 
 
 def test_start_up_lines_give_the_config_and_the_parameter_counts(tiny_run):
@@ -176,11 +176,11 @@ def test_a_policy_is_evaluated_with_the_exploration_range_it_trained_with(tiny_r
     assert row["episodes"] == 1 and row["error_mm"] == 0 and row["ex_r_mm"] == 15.0
 
 
-@pytest.mark.parametrize("args, message", [(["--task", "gear"], "trained for --task peg"),
-                                           (["--task", "peg", "--roi", "200"], "trained with --roi task, not 200")])
-def test_a_policy_is_not_evaluated_in_another_task_or_view(tiny_run, capsys, args, message):
+@pytest.mark.parametrize("args, flag", [(["--task", "gear"], "--task"), (["--task", "peg", "--roi", "200"], "--roi")])
+def test_a_policy_is_not_evaluated_in_another_task_or_view(tiny_run, capsys, args, flag):
     assert tacrl.main(args + ["--eval", os.path.join(tiny_run["dir"], "policy.pt")]) == 2
-    assert message in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert flag in err and err.count("\n") == 1
 
 
 def test_archive_keeps_what_the_report_reads_and_skips_unfinished_runs(tiny_run, tmp_path):
