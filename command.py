@@ -2,6 +2,7 @@
 against each other and the files they name, before any work; a run directory's default name and config; --eval's
 run; and how torch uses the CPU. It takes the Config class from its caller and imports nothing of tacrl.py.
 """
+import ctypes
 import importlib
 import json
 import os
@@ -14,7 +15,6 @@ import torch
 import baselines
 import contexts
 import evaluate
-import policy
 import rundir
 import scene
 import sim
@@ -23,18 +23,40 @@ from cli import ArgError, check_bounds, check_dir_writable, check_new_file, desc
 RESUME_MAY_SET = ("resume", "train_episodes", "stop_held", "threads", "track")   # to extend a run; nothing else changes
 NOT_LEARNING = ("eval", "resume", "run_dir", "track", "threads", "device", "gui", "episodes", "json", "video", "eval_levels",
                 "train_episodes", "stop_held")     # how a run is run, evaluated or extended, not what it learns
+# The critics study's flags (issues 31 and 50; docs/CRITICS.md) and their defaults, retired to the git tag
+# STUDY_TAG. A run dir written before reads on where they have the values under which it computes what today's
+# code does: these, and for --critic multimodal, STUDY_MULTIMODAL (the setting that learned best, today's).
+STUDY_TAG = "critics-study"
+STUDY_DEFAULTS = {"shift": 0, "drq": 1, "critic_extra": False, "next_encoder": "target", "nstep": 1, "aux_reward": 0.0,
+                  "aux_offset": 0.0, "actor_encoder": "shared", "fusion_norm": "joint", "image_encoder": "cnn",
+                  "q_norm": False, "q_dropout": 0.0, "q_heads": 2, "reset": 0, "aux_wrench": 0.0, "aux_recon": 0.0,
+                  "aux_curl": 0.0, "enc_lr": 0.0, "image_feat": 6}
+STUDY_MULTIMODAL = {"critic_extra": True, "next_encoder": "online", "fusion_norm": "modality", "q_norm": True}
 RUN_NAME_TAGS = (("clearance_mm", "c"), ("updates", "u"), ("warmup", "w"), ("batch", "b"), ("buffer", "buf"),
                  ("lr", "lr"), ("gamma", "g"), ("target_entropy", "ent"))   # default_run_dir's tail, where not the default
 
 
+def keep_freed_memory():
+    """Let glibc's malloc keep what it frees (M_MMAP_THRESHOLD 32 MB, M_TRIM_THRESHOLD 1 GB) instead of handing
+    blocks back to the kernel: otherwise every update's LSTM and convolution buffers (a few MB) come back as fresh
+    pages that fault in one by one, and the LSTM's forward and backward took over twice as long. A run then holds
+    its largest working set. Process-wide; a no-op where libc is not glibc."""
+    try:
+        libc = ctypes.CDLL("libc.so.6")
+        libc.mallopt(-3, 32 << 20)          # M_MMAP_THRESHOLD: blocks up to 32 MB from the heap, not mmap
+        libc.mallopt(-1, 1 << 30)           # M_TRIM_THRESHOLD: keep up to 1 GB of free heap
+    except (OSError, AttributeError):
+        pass
+
+
 def use_cpu(device="cpu"):
     """Torch on the CPU as tacrl runs it: every op on the thread that calls it (an update's second core is
-    policy.Helper's thread, acting needs one), and malloc keeping what it frees (policy.keep_freed_memory). With
+    policy.Helper's thread, acting needs one), and malloc keeping what it frees (keep_freed_memory). With
     torch's default of a thread a core, OpenMP's threads wait for each other at every op: beside one busy program
     that slowed updates 3-4x on 2 cores (bench/bench_threads.py)."""
     if device == "cpu":
         torch.set_num_threads(1)
-        policy.keep_freed_memory()
+        keep_freed_memory()
 
 
 def warn_oversubscribed(prog, threads, processes=1, cores=None):
@@ -94,14 +116,6 @@ def check(cfg):
              f"{cfg.randomize!r}" + (f" with --context {cfg.context}" if cfg.context != "train" else "")),
             (cfg.obs == "ts-ptk" and cfg.task != "peg", "--obs ts-ptk (keypoint RL) finds the peg board's hole; the "
                                                         "gear's shaft is no keypoint it finds (Table 1 is the peg's)"),
-            (cfg.critic != "multimodal" and (cfg.critic_extra, cfg.next_encoder, cfg.actor_encoder, cfg.aux_reward,
-                                             cfg.aux_offset, cfg.aux_wrench, cfg.aux_recon, cfg.aux_curl, cfg.enc_lr)
-             != (False, "target", "shared", 0.0, 0.0, 0.0, 0.0, 0.0, 0.0),
-             "--critic-extra, --next-encoder, --actor-encoder, --aux-reward, --aux-offset, --aux-wrench, --aux-recon, "
-             "--aux-curl and --enc-lr change the paper's critics: they need --critic multimodal"),
-            ((cfg.aux_recon or cfg.aux_curl) and cfg.obs not in ("ts-ptv", "v"),
-             f"--aux-recon and --aux-curl read the image: --obs {cfg.obs} has none"),
-            (cfg.drq > 1 and not cfg.shift, f"--drq {cfg.drq} averages over shifted copies: it needs --shift"),
             (cfg.buffer < max(cfg.batch, sim.MAX_STEPS), f"--buffer {cfg.buffer} must hold an episode ({sim.MAX_STEPS} "
                                                          f"transitions) and a batch (--batch {cfg.batch})"),
             (cfg.video and os.path.splitext(cfg.video)[1].lower() not in evaluate.VIDEO_CODECS,
@@ -143,11 +157,9 @@ def check(cfg):
 
 
 def default_run_dir(cfg):
-    """runs/<task>-[vanilla-]<obs>-<curriculum>[-e<E_r mm>][-roi-<roi>][-ctx-<context>][-<critic>][-aug<s>][-shift<px>][-drq<K>][-rand-<families>][-extra]
-    [-next-online][-norm-modality][-own-actor-enc][-n<steps>][-auxr<w>][-auxo<w>][-img-<encoder>][-imgnorm-<norm>][-qnorm]
-    [-qdrop<p>][-redq<n>][-reset<episodes>][-auxw<w>][-auxi<w>][-curl<w>][-enclr<lr>][-imgf<n>]
-    [-<tag><value> of RUN_NAME_TAGS]-s<seed>:
-    the flags of the baselines, ablations and options are in its name, so that no run overwrites another's directory."""
+    """runs/<task>-[vanilla-]<obs>-<curriculum>[-e<E_r mm>][-roi-<roi>][-ctx-<context>][-<critic>][-aug<s>]
+    [-rand-<families>][-imgnorm-<norm>][-<tag><value> of RUN_NAME_TAGS]-s<seed>: the flags of the baselines,
+    ablations and options are in its name, so that no run overwrites another's directory."""
     default = type(cfg)                                 # the config's class: its defaults
     name = f"{cfg.task}-{'vanilla-' if cfg.vanilla else ''}{cfg.obs}-{cfg.curriculum}"
     name += f"-e{cfg.error_mm:g}" if cfg.error_mm != default.error_mm else ""
@@ -155,36 +167,30 @@ def default_run_dir(cfg):
     name += f"-ctx-{cfg.context}" if cfg.context != default.context else ""
     name += f"-{cfg.critic}" if cfg.critic != default.critic else ""
     name += f"-aug{cfg.augment:g}" if cfg.augment else ""
-    name += f"-shift{cfg.shift}" if cfg.shift else ""
-    name += f"-drq{cfg.drq}" if cfg.drq > 1 else ""
     name += f"-rand-{cfg.randomize.replace(',', '+')}" if cfg.randomize else ""
-    name += "-extra" if cfg.critic_extra else ""
-    name += f"-next-{cfg.next_encoder}" if cfg.next_encoder != default.next_encoder else ""
-    name += f"-norm-{cfg.fusion_norm}" if cfg.fusion_norm != default.fusion_norm else ""
-    name += "-own-actor-enc" if cfg.actor_encoder == "own" else ""
-    name += f"-n{cfg.nstep}" if cfg.nstep > 1 else ""
-    name += f"-auxr{cfg.aux_reward:g}" if cfg.aux_reward else ""
-    name += f"-auxo{cfg.aux_offset:g}" if cfg.aux_offset else ""
-    name += f"-img-{cfg.image_encoder}" if cfg.image_encoder != default.image_encoder else ""
     name += f"-imgnorm-{cfg.image_norm}" if cfg.image_norm != default.image_norm else ""
-    name += "-qnorm" if cfg.q_norm else ""
-    name += f"-qdrop{cfg.q_dropout:g}" if cfg.q_dropout else ""
-    name += f"-redq{cfg.q_heads}" if cfg.q_heads != default.q_heads else ""
-    name += f"-reset{cfg.reset}" if cfg.reset else ""
-    name += f"-auxw{cfg.aux_wrench:g}" if cfg.aux_wrench else ""
-    name += f"-auxi{cfg.aux_recon:g}" if cfg.aux_recon else ""
-    name += f"-curl{cfg.aux_curl:g}" if cfg.aux_curl else ""
-    name += f"-enclr{cfg.enc_lr:g}" if cfg.enc_lr else ""
-    name += f"-imgf{cfg.image_feat}" if cfg.image_feat != default.image_feat else ""
     for field, tag in RUN_NAME_TAGS:                    # the scene and SAC's numbers, where not the defaults
         value = getattr(cfg, field)
         name += f"-{tag}{value:g}" if value != getattr(default, field) else ""
     return os.path.join("runs", f"{name}-s{cfg.seed}")
 
 
+def study_options(d):
+    """Pops the critics study's flags from a config dict; returns those whose values today's code does not compute
+    (such a run is the study's: its code is on the git tag STUDY_TAG)."""
+    study = {k: d.pop(k) for k in list(d) if k in STUDY_DEFAULTS}
+    now = {**STUDY_DEFAULTS, **(STUDY_MULTIMODAL if d.get("critic") == "multimodal" else {})}
+    return {k: v for k, v in {**STUDY_DEFAULTS, **study}.items() if v != now[k]} if study else {}
+
+
 def read_config(config_cls, run_dir):
-    """A run's config.json as a Config; OSError, or ValueError if a value is not of its flag's type and choices."""
-    return from_dict(config_cls, rundir.read_config(run_dir))
+    """A run's config.json as a Config; OSError, or ValueError if a value is not of its flag's type and choices, or
+    if the run used options of the critics study."""
+    d = rundir.read_config(run_dir)
+    study = study_options(d)
+    if study:
+        raise ValueError(f"a run of the critics study ({', '.join(study)}): its code is git tag {STUDY_TAG}")
+    return from_dict(config_cls, d)
 
 
 def episodes_saved(run_dir):

@@ -15,17 +15,50 @@ import cv2
 import numpy as np
 
 import policy
+import rundir
 import scene
 import sim
 
+POLICY_FORMAT = "tacrl-policy-2"
 EVAL_SEED = 1000             # evaluation episodes use seeds from EVAL_SEED + the run's seed: never a training seed
 POLICY_META = ("task", "roi", "vanilla", "ex_r", "e_r_max")     # what training tells evaluation (tacrl.finish)
 
 
+def save_policy(path, sac, meta):
+    """policy.pt: the actor and the encoder it reads (the critics stay behind), and meta, a dict of
+    plain values that evaluation must know of training ('obs' among them: the encoder's kind)."""
+    rundir.save_atomic({"format": POLICY_FORMAT, **meta, "norm": sac.actor_enc.norm_kind,
+                 "image_norm": sac.actor_enc.image_norm, "encoder": sac.actor_enc.state_dict(),
+                 "actor": sac.actor.state_dict()}, path)
+
+
+class TrainedPolicy:
+    """A policy.pt's contents (torch.load) as act(obs) -> action: the deterministic actor (the
+    Gaussian's mean). .meta holds what save_policy was given."""
+
+    def __init__(self, d, device="cpu"):
+        if not isinstance(d, dict) or d.get("format") != POLICY_FORMAT:
+            raise ValueError("not a tacrl policy file")
+        self.meta = {k: v for k, v in d.items() if k not in ("format", "encoder", "actor")}
+        self.device = device
+        if (d.get("image_encoder", "cnn"), d.get("image_feat", policy.FEAT)) != ("cnn", policy.FEAT):
+            raise ValueError(f"its image encoder ({d['image_encoder']}, {d['image_feat']}-d) is the critics study's "
+                             "(docs/CRITICS.md names the git tag that reads it)")
+        # (files before 'norm' and 'image_norm': joint, fixed)
+        self.encoder = policy.Encoder(d["obs"], norm=d.get("norm", "joint"), image_norm=d.get("image_norm", "fixed"))
+        self.encoder.to(device).eval()
+        self.encoder.load_state_dict(d["encoder"])
+        self.actor = policy.Actor(self.encoder.out_dim).to(device).eval()
+        self.actor.load_state_dict(d["actor"])
+
+    def __call__(self, obs):
+        return policy.act(self.encoder, self.actor, obs, deterministic=True, device=self.device)
+
+
 def load_policy(path, device="cpu"):
-    """policy.pt -> policy.TrainedPolicy; ValueError saying what is wrong with a file that is not one."""
+    """policy.pt -> TrainedPolicy; ValueError saying what is wrong with a file that is not one."""
     try:
-        pi = policy.TrainedPolicy(policy.load_file(path, device), device)
+        pi = TrainedPolicy(rundir.load_file(path, device), device)
     except Exception as e:          # corrupt, truncated, foreign: one phrase for the caller's line
         lines = str(e).strip().splitlines()
         raise ValueError(f"cannot load the policy ({type(e).__name__}{': ' + lines[0][:120] if lines else ''})")
@@ -38,7 +71,7 @@ def load_policy(path, device="cpu"):
 def eval_env(task, act, context="train", roi="task", clearance_mm=0.1, e_r_mm=0.0, gui=False):
     """The env to evaluate `act` in; a TrainedPolicy's at the Ex_r, ROI and X_i it was trained for, with its
     guidance."""
-    m = act.meta if isinstance(act, policy.TrainedPolicy) else {}
+    m = act.meta if isinstance(act, TrainedPolicy) else {}
     return sim.AssemblyEnv(task, context, e_r=e_r_mm / 1000, ex_r=m.get("ex_r"), roi=roi, clearance=clearance_mm / 1000,
                            gui=gui, base_policy=not m.get("vanilla", False), e_r_max=m.get("e_r_max"),
                            keypoint=m.get("obs") == "ts-ptk")

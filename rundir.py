@@ -16,13 +16,14 @@ import copy
 import csv
 import json
 import os
+import pickle
 import re
 import time
+import warnings
 
 import numpy as np
 import torch
 
-import policy
 
 LOG = "train.log"
 METRICS = ["episode", "return", "success", "sr15", "e_r_mm", "ex_r_mm", "delta", "steps", "total_steps", "updates",
@@ -31,6 +32,23 @@ DIGITS = {"delta": 4}           # metrics.csv's decimals where not 3 (losses: 5,
 TB_GROUPS = {"charts": ("return", "success", "sr15", "e_r_mm", "ex_r_mm", "delta", "steps", "total_steps", "updates"),
              "losses": ("q_loss", "pi_loss", "alpha", "entropy"), "time": ("env_s", "update_s", "elapsed_s")}
 TB_IMAGE_EVERY = 10          # episodes between the task-attention images sent to TensorBoard
+
+
+def save_atomic(obj, path):
+    """torch.save to path.tmp, then rename: an interrupt leaves the old file or the new one."""
+    torch.save(obj, path + ".tmp")
+    os.replace(path + ".tmp", path)
+
+
+def load_file(path, device="cpu"):
+    """torch.load of a file save_atomic saved: tensors and plain values only (weights_only), and quietly,
+    since torch warns about a foreign pickle before it refuses it; the caller reports what is wrong."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            return torch.load(path, map_location=device, weights_only=True)
+        except pickle.UnpicklingError:
+            raise ValueError("not a file of tensors that torch loads safely (weights_only)") from None
 
 
 class RunError(ValueError):
@@ -262,7 +280,7 @@ class Run:
 
     def _load(self, path):
         try:
-            ck = policy.load_file(path)
+            ck = load_file(path)
             for name, obj in self.state.items():
                 if isinstance(obj, np.random.Generator):
                     obj.bit_generator.state = json.loads(ck[name])
@@ -306,7 +324,7 @@ class Run:
               "replay": json.dumps(self.files.state(self.buf)), "torch_rng": torch.get_rng_state()}
         for name, obj in self.state.items():
             ck[name] = json.dumps(obj.bit_generator.state) if isinstance(obj, np.random.Generator) else obj.state_dict()
-        policy.save_atomic(ck, os.path.join(self.dir, "ckpt.pt"))
+        save_atomic(ck, os.path.join(self.dir, "ckpt.pt"))
         self.files.prune()                           # only now: the last checkpoint still needed those files
         self.log(f"ep {row['episode']:4d}/{self.cfg.train_episodes}  R {row['return']:7.1f}  succ {row['success']}  "
                  f"sr15 {row['sr15']:4.2f}  E_r {row['e_r_mm']:4.1f}mm  Ex_r {row['ex_r_mm']:4.1f}mm  delta "

@@ -40,9 +40,6 @@ def train_opt(*args, **kw):                       # a flag for training only (re
     return opt(*args, mode="train", **kw)
 
 
-CURL_SHIFT = 4                                    # px: --aux-curl's positive, o's image shifted anew (DrQ's pad)
-
-
 @dataclass
 class Config:
     # what to run
@@ -69,47 +66,12 @@ class Config:
     curriculum: str = train_opt("adaptive", "error curriculum (Eq. 16, Fig. 10); ex10: Fig. 9's", curriculum.KINDS)
     vanilla: bool = train_opt(False, "the vanilla baseline, without a base policy: no trajectory, no spring, no "
                                      "stiffness from the estimated poses; F_d alone moves the tool")
-    critic: str = train_opt("privileged", "privileged: also X - X_g (README difference 13)", ("privileged", "multimodal"))
+    critic: str = train_opt("privileged", "privileged: also X - X_g (README difference 13); multimodal: the paper's, with "
+                                          "the time and the curriculum's ranges (README difference 13)",
+                            ("privileged", "multimodal"))
     augment: float = train_opt(0.0, "image jitter s: brightness, contrast x U(1-s, 1+s) (README difference 17)", bounds=(0, 1))
     randomize: str = train_opt("", "draw each episode's scene from these families' training scenes, comma-separated "
                                    "(domain randomization: place, light, colour, parts, mixed)")
-    shift: int = train_opt(0, "random image shift in the updates, up to this many pixels (DrQ; 0: none)", bounds=(0, 16))
-    drq: int = train_opt(1, "with --shift, each transition of a batch shifted this many times: the TD target averaged "
-                            "over them, the critics' loss over all (DrQ's K = M = 2; ours, issue 50's study)", bounds=(1, 8))
-    critic_extra: bool = train_opt(False, "the paper's critics also read the time and the curriculum's E_r and Ex_r "
-                                          "(known to the agent; --critic multimodal)")
-    next_encoder: str = train_opt("target", "which encoder reads o' in the TD target: target (Polyak) or online (DrQ-v2)",
-                                  ("target", "online"))
-    nstep: int = train_opt(1, "n-step returns in the TD target (DrQ-v2: 3)", bounds=(1, 20))
-    aux_reward: float = train_opt(0.0, "weight of a reward-prediction loss on the critics' encoder (UNREAL; 0: none)",
-                                  bounds=(0, None))
-    aux_offset: float = train_opt(0.0, "weight of a loss on the critics' encoder predicting X - X_g, which training "
-                                       "knows (a label, never an input; 0: none)", bounds=(0, None))
-    actor_encoder: str = train_opt("shared", "the paper's critics lend the actor their encoder, gradient stopped (shared, "
-                                             "SAC-AE/DrQ), or it has its own, trained by the actor loss (own)",
-                                   ("shared", "own"))
-    fusion_norm: str = train_opt("joint", "LayerNorm over the 18-d fusion vector (joint) or over each modality's "
-                                          "features (modality)", ("joint", "modality"))
-    image_encoder: str = train_opt("cnn", "the image's encoder: the paper's CNN, or keypoints from a spatial softmax "
-                                          "(Levine et al. 2016; ours)", tuple(policy.IMAGE_ENCODERS))
-    q_norm: bool = train_opt(False, "LayerNorm after each hidden layer of the twin Q heads (RLPD, Ball et al. 2023; ours, "
-                                    "issue 50's study)")
-    q_dropout: float = train_opt(0.0, "dropout after each hidden layer of the Q heads (DroQ, Hiraoka et al. 2021, with "
-                                      "--q-norm; ours, issue 50's study)", bounds=(0, 1))
-    q_heads: int = train_opt(2, "Q heads: 2, twin Q; more, REDQ's ensemble, the target's min over 2 drawn at random "
-                                "(Chen et al. 2021; ours, issue 50's study)", bounds=(2, 20))
-    reset: int = train_opt(0, "every this many episodes after the warm-up, the actor's and critics' MLP heads drawn anew "
-                              "(Nikishin et al. 2022; ours, issue 50's study; 0: never)", bounds=(0, None))
-    aux_wrench: float = train_opt(0.0, "weight of a loss on the critics' encoder predicting the next wrench reading "
-                                       "(ours, issue 50's study; 0: none)", bounds=(0, None))
-    aux_recon: float = train_opt(0.0, "weight of a loss on the critics' encoder rebuilding the image (SAC-AE; ours, "
-                                      "issue 50's study; 0: none)", bounds=(0, None))
-    aux_curl: float = train_opt(0.0, "weight of CURL's contrastive loss on the critics' encoder, o against o shifted "
-                                     f"anew by up to {CURL_SHIFT} px (ours, issue 50's study; 0: none)", bounds=(0, None))
-    enc_lr: float = train_opt(0.0, "Adam step size of the critics' encoder (ours, issue 50's study; 0: --lr's)",
-                              bounds=(0, 1))
-    image_feat: int = train_opt(policy.FEAT, "the image's feature size (the paper's 6; wider: ours, issue 50's study)",
-                                bounds=(1, 64))
     image_norm: str = train_opt("fixed", "the image's grey levels as the encoder reads them: x / 255 - 0.5 (fixed), or "
                                          "each image standardised by its own mean and spread (image; ours)",
                                 policy.IMAGE_NORMS)
@@ -143,7 +105,7 @@ class Config:
 
 POSE_SCALE = np.array([sim.E_R_FINAL] * 3 + [sim.E_ROT_FINAL] * 3)   # m, rad: the encoders' pose units
 STATE_DIM = 7                                                        # what privileged critics read (critic_state)
-EXTRA_DIM = 3                                                        # what --critic-extra adds (critic_extra)
+EXTRA_DIM = 3                                                        # what the paper's critics read besides (critic_extra)
 VAL_SEED, VAL_EPISODES, VAL_WINS, VAL_EVERY, VAL_PASSES = 2000, 20, 19, 10, 2   # stop when learned: 19 of 20 twice
 
 
@@ -158,7 +120,7 @@ def train(cfg, log=lambda msg: print(msg, flush=True)):
     env.np_random = np.random.default_rng(cfg.seed)
     curr = curriculum.Curriculum(cfg.curriculum, final=cfg.error_mm / 1000)     # line 6: Eq. 16's parameters
     sac, stop, rng = make_sac(cfg), StopRule(cfg), np.random.default_rng(cfg.seed + 1)   # (rng: replay sampling)
-    buf = policy.ReplayBuffer(cfg.buffer, obs_shapes(cfg), nstep=cfg.nstep, gamma=cfg.gamma)    # R
+    buf = policy.ReplayBuffer(cfg.buffer, obs_shapes(cfg))                                     # R
     run = rundir.Run(cfg, {"sac": sac, "curriculum": curr, "stop": stop, "env_rng": env.np_random, "sample_rng": rng},
                      buf, log, probe_update=cfg.updates * rundir.update_seconds(sac, zero_batch(buf, cfg)))
     if run.extended:                                       # a finished run trained on validates anew
@@ -178,10 +140,7 @@ def train(cfg, log=lambda msg: print(msg, flush=True)):
             # line 10, update the policy with SAC
             losses = []
             for _ in range(cfg.updates if ep >= cfg.warmup else 0):
-                batch = buf.sample(cfg.batch, rng, cfg.augment, cfg.shift, cfg.drq, CURL_SHIFT if cfg.aux_curl else 0)
-                losses.append(sac.update(batch))
-            if cfg.reset and ep >= cfg.warmup and (ep + 1 - cfg.warmup) % cfg.reset == 0:
-                sac.reset_heads()
+                losses.append(sac.update(buf.sample(cfg.batch, rng, cfg.augment)))
             run.lap("update")
             curr.update(bool(episode["term"][-1]))                      # line 11: generate the curriculum, Eq. 16
             learned = stop.learned(env.e_r >= curr.final - 1e-9, lambda: validate(cfg, sac, curr), log, ep)
@@ -233,9 +192,9 @@ def critic_state(info):
 
 
 def critic_extra(info):
-    """What --critic-extra adds to the paper's critics, obs['extra'] (EXTRA_DIM,): the time as a fraction of the
-    episode and the curriculum's E_r and Ex_r over the final range, all of which the agent knows (the reward's
-    W and the time left change with them); the actor does not read it."""
+    """What the paper's critics (--critic multimodal) read besides the actor's observation, obs['extra'] (EXTRA_DIM,)
+    (README difference 13): the time as a fraction of the episode and the curriculum's E_r and Ex_r over the final
+    range, all of which the agent knows (the reward's W and the time left change with them)."""
     return np.array([info["t"] * sim.POLICY_HZ / sim.MAX_STEPS, info["e_r"] / sim.E_R_FINAL, info["ex_r"] / sim.E_R_FINAL],
                     np.float32)
 
@@ -250,31 +209,23 @@ def make_env(cfg, **kw):
 def make_sac(cfg, device=None):
     return policy.SAC(cfg.obs, POSE_SCALE, sim.F_MAX6, lr=cfg.lr, gamma=cfg.gamma, target_entropy=cfg.target_entropy,
                       state_dim=STATE_DIM if cfg.critic == "privileged" else 0,
-                      device=device or ("cpu" if cfg.device == "auto" else cfg.device),
-                      extra_dim=EXTRA_DIM if cfg.critic_extra else 0, target_encoder=cfg.next_encoder == "target",
-                      norm=cfg.fusion_norm, own_actor_encoder=cfg.actor_encoder == "own", aux_reward=cfg.aux_reward,
-                      aux_state=cfg.aux_offset, image=cfg.image_encoder, image_norm=cfg.image_norm, q_norm=cfg.q_norm,
-                      threads=cfg.threads or min(2, os.cpu_count() or 1), q_dropout=cfg.q_dropout, n_q=cfg.q_heads,
-                      aux_wrench=cfg.aux_wrench, image_feat=cfg.image_feat, copies=cfg.drq, aux_recon=cfg.aux_recon,
-                      enc_lr=cfg.enc_lr or None, aux_curl=cfg.aux_curl)
+                      extra_dim=EXTRA_DIM if cfg.critic == "multimodal" else 0, image_norm=cfg.image_norm,
+                      threads=cfg.threads or min(2, os.cpu_count() or 1),
+                      device=device or ("cpu" if cfg.device == "auto" else cfg.device))
 
 
 def obs_shapes(cfg):
-    """What the replay buffer keeps of an observation (the critics' 'state' only where they read it; keypoint RL's
-    keypoint, not the image it was found in)."""
+    """What the replay buffer keeps of an observation (what the critics read besides the actor's observation;
+    keypoint RL's keypoint, not the image it was found in)."""
     return {**({"keypoint": (4,)} if cfg.obs == "ts-ptk" else {"image": (sim.IMG, sim.IMG)}),
             "pose_hist": (sim.HIST, 6), "wrench_hist": (sim.HIST, 6),
-            **({"state": (STATE_DIM,)} if cfg.critic == "privileged" or cfg.aux_offset else {}),
-            **({"extra": (EXTRA_DIM,)} if cfg.critic_extra else {})}
+            **({"state": (STATE_DIM,)} if cfg.critic == "privileged" else {"extra": (EXTRA_DIM,)})}
 
 
 def zero_batch(buf, cfg):
     """A batch of zeros shaped as buf.sample gives the run one (for the update-time probe)."""
-    n = cfg.batch * cfg.drq
-    o = {k: np.zeros((n, *v.shape[1:]), v.dtype) for k, v in buf.obs.items()}
-    if cfg.aux_curl:
-        o["image_pos"] = o["image"]
-    return o, np.zeros((n, 6), np.float32), np.zeros(n, np.float32), o, np.zeros(n, np.float32)
+    o = {k: np.zeros((cfg.batch, *v.shape[1:]), v.dtype) for k, v in buf.obs.items()}
+    return o, np.zeros((cfg.batch, 6), np.float32), np.zeros(cfg.batch, np.float32), o, np.zeros(cfg.batch, np.float32)
 
 
 class StopRule:
@@ -315,7 +266,7 @@ def validate(cfg, sac, curr):
 def finish(cfg, sac, curr, e_r_max, seconds, log):
     """policy.pt (with what evaluation must know of training), curves.png and eval.json: held-out seeds."""
     policy_path = os.path.join(cfg.run_dir, "policy.pt")
-    policy.save_policy(policy_path, sac, {"task": cfg.task, "obs": cfg.obs, "roi": cfg.roi, "vanilla": cfg.vanilla,
+    evaluate.save_policy(policy_path, sac, {"task": cfg.task, "obs": cfg.obs, "roi": cfg.roi, "vanilla": cfg.vanilla,
                                           "ex_r": float(curr.ranges()[1]), "e_r_max": float(e_r_max)})
     rundir.plot_curves(cfg.run_dir, f"{cfg.task}, {cfg.obs}, {cfg.curriculum}")
     pi = evaluate.load_policy(policy_path, sac.device)

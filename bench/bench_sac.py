@@ -25,7 +25,7 @@ import sim  # noqa: E402
 import tacrl  # noqa: E402
 
 SHAPES = {"image": (sim.IMG, sim.IMG), "pose_hist": (sim.HIST, 6), "wrench_hist": (sim.HIST, 6),
-          "state": (tacrl.STATE_DIM,)}        # 'state': what --critic privileged reads; the others ignore it
+          "state": (tacrl.STATE_DIM,), "extra": (tacrl.EXTRA_DIM,)}   # what the privileged, the paper's critics read
 
 
 def filled_buffer(rng, n=2000):
@@ -35,7 +35,8 @@ def filled_buffer(rng, n=2000):
         buf.add_episode({"obs": {"image": rng.integers(0, 256, (T + 1, sim.IMG, sim.IMG), dtype=np.uint8),
                                  "pose_hist": rng.normal(0, 0.01, (T + 1, sim.HIST, 6)).astype(np.float32),
                                  "wrench_hist": rng.normal(0, 1, (T + 1, sim.HIST, 6)).astype(np.float32),
-                                 "state": rng.normal(0, 1, (T + 1, tacrl.STATE_DIM)).astype(np.float32)},
+                                 "state": rng.normal(0, 1, (T + 1, tacrl.STATE_DIM)).astype(np.float32),
+                                 "extra": rng.uniform(0, 1, (T + 1, tacrl.EXTRA_DIM)).astype(np.float32)},
                          "act": rng.uniform(-1, 1, (T, 6)), "rew": rng.normal(size=T), "term": np.zeros(T)})
     return buf
 
@@ -63,7 +64,8 @@ def main():
     for obs, critic in (("ts-ptv", "privileged"), ("ts-ptv", "multimodal"), ("ts-pt", "multimodal"),
                         ("pt", "multimodal")):
         r = [updates_per_s(policy.SAC(obs, tacrl.POSE_SCALE, sim.F_MAX6, threads=threads,
-                                      state_dim=tacrl.STATE_DIM if critic == "privileged" else 0),
+                                      state_dim=tacrl.STATE_DIM if critic == "privileged" else 0,
+                                      extra_dim=0 if critic == "privileged" else tacrl.EXTRA_DIM),
                            buf, rng, a.batch, a.updates) for _ in range(a.repeats)]
         print(f"{obs:6s} critics {critic:10s}: median {np.median(r):5.1f} updates/s "
               f"(min {min(r):.1f}, max {max(r):.1f})")

@@ -35,10 +35,10 @@ def worker(threads, helper, updates, acts=120):
     sys.path.insert(0, ROOT)
     import torch
     from bench_sac import filled_buffer
-    import policy
+    import command
     import tacrl
     torch.set_num_threads(threads)
-    policy.keep_freed_memory()
+    command.keep_freed_memory()
     rng = np.random.default_rng(0)
     buf, sac = filled_buffer(rng), tacrl.make_sac(tacrl.Config(threads=max(1, helper)), "cpu")
     if not helper:

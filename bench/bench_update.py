@@ -74,7 +74,7 @@ def parts(sac, o, a, calls, repeats):
     pi = list(sac.actor.parameters())
     out["actor's MLP: forward + backward, x2 (a' and the actor loss)"] = 2 * ms(grads(lambda: sac.actor(z)[1], pi))
     out["three Adam steps + Polyak"] = ms(lambda: (sac.q_opt.step(), sac.pi_opt.step(), sac.alpha_opt.step(),
-                                                   torch._foreach_lerp_(sac._targ_params, sac._online_params, sac.tau)))
+                                                   torch._foreach_lerp_(list(sac.q_targ.parameters()), q, policy.TAU)))
     return out
 
 

@@ -116,11 +116,7 @@ MISTAKES = {   # a few of each kind; the files they point at are in `workdir`
                                                          ["--eval", "initial", "--json", "/proc/row.json"]],
     "a flag of the other mode, or one that would change nothing": [["--eval", "initial", "--lr", "0.1"],
                                                                    ["--json", "x.json"], ["--train-episode", "5"],
-                                                                   ["--critic-extra"], ["--aux-wrench", "1"],
-                                                                   ["--drq", "2"], ["--aux-recon", "1"],
-                                                                   ["--aux-curl", "1"],
-                                                                   ["--critic", "multimodal", "--obs", "pt",
-                                                                    "--aux-recon", "1"]],
+                                                                   ["--q-norm"], ["--aux-offset", "10"]],   # (retired)
     "a window without a display": [["--eval", "initial", "--gui"]],
 }
 

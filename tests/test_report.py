@@ -37,6 +37,29 @@ def test_report_command_of_a_run():
     assert tacrl.parse_args(report.command_of(cfg).split()[2:]).vanilla
 
 
+@pytest.mark.parametrize("critic, study, today", [
+    ("privileged", {"shift": 0, "q_norm": False, "next_encoder": "target"}, True),      # written before: the same
+    ("privileged", {"q_norm": True}, False),
+    ("multimodal", {"critic_extra": True, "next_encoder": "online", "fusion_norm": "modality", "q_norm": True}, True),
+    ("multimodal", {"critic_extra": True, "next_encoder": "online", "fusion_norm": "modality"}, False),   # no q_norm
+    ("multimodal", {}, True),                                                            # written today
+])
+def test_a_run_of_the_critics_study_reads_in_the_report_and_nowhere_else(tmp_path, critic, study, today):
+    """The study's flags left the core for a git tag: a run dir that used them is refused by what would train or
+    rebuild it, and the report describes it by the flags in which it differs from today's code."""
+    import json
+    cfg = {**dataclasses.asdict(tacrl.Config()), "critic": critic, **study}
+    (tmp_path / "config.json").write_text(json.dumps(cfg))
+    if today:
+        assert tacrl.read_config(str(tmp_path)).critic == critic
+        assert report.method_of(report.read_config(str(tmp_path))) == ("ours" if critic == "privileged" else
+                                                                        "ours (critic multimodal)")
+    else:
+        with pytest.raises(ValueError, match="critics-study"):
+            tacrl.read_config(str(tmp_path))
+        assert "q_norm" in report.method_of(report.read_config(str(tmp_path)))
+
+
 @pytest.mark.parametrize("changes, episodes, expected", [
     ({}, 200, set()),                                                  # stopped when learned: a budget of its own
     ({"stop_held": 0, "train_episodes": 200}, 200, {"methods", "roi"}),   # Table 1 and Fig. 11: 200 episodes

@@ -427,14 +427,27 @@ def test_soft_returns_and_the_probes_regression():
     assert r2[0] > 0.99 and r2[1] < 0.05
 
 
-def test_the_critics_studys_options_all_train_a_run(tmp_path, monkeypatch):
-    # every option of issue 50's screen at once, through Algorithm 1 (the update-time probe, the sampling, the
-    # resets, the evaluation), so that none fails only in a real run
+def test_the_papers_critics_train_a_run(tmp_path, monkeypatch):
+    # --critic multimodal through Algorithm 1 (the update-time probe, the sampling, the evaluation), so that nothing
+    # of it fails only in a real run
     monkeypatch.setattr(sim, "MAX_STEPS", SHORT)
     argv = ["--task", "peg", "--error-mm", "1", "--train-episodes", "3", "--warmup", "1", "--updates", "2",
             "--batch", "4", "--episodes", "1", "--eval-levels", "1", "--buffer", "40", "--threads", "1",
-            "--critic", "multimodal", "--critic-extra", "--q-norm", "--q-dropout", "0.1", "--q-heads", "3",
-            "--reset", "1", "--aux-wrench", "1", "--aux-recon", "1", "--aux-curl", "1", "--enc-lr", "1e-4",
-            "--image-feat", "8", "--shift", "2", "--drq", "2", "--run-dir", str(tmp_path / "run")]
+            "--critic", "multimodal", "--run-dir", str(tmp_path / "run")]
     result = tacrl.train(tacrl.parse_args(argv), log=lambda *_: None)
     assert result["train_episodes"] == 3 and len(result["rows"]) == 1
+
+
+@pytest.mark.parametrize("state_dim,image_norm", [(7, "fixed"), (7, "image"), (0, "fixed")])
+def test_a_saved_policy_keeps_its_encoders_layout(tmp_path, state_dim, image_norm):
+    torch.manual_seed(0)
+    sac = policy.SAC("ts-ptv", state_dim=state_dim, image_norm=image_norm)
+    evaluate.save_policy(str(tmp_path / "p.pt"), sac, {"task": "peg", "obs": "ts-ptv"})
+    pi = evaluate.TrainedPolicy(rundir.load_file(str(tmp_path / "p.pt")))
+    rng = np.random.default_rng(0)
+    obs = {"image": rng.integers(0, 256, (80, 80), dtype=np.uint8), "pose_hist": rng.normal(0, 0.01, (32, 6)).astype(
+        np.float32), "wrench_hist": rng.normal(0, 1, (32, 6)).astype(np.float32)}
+    np.testing.assert_array_equal(pi(obs), sac.act(obs, deterministic=True))
+    old = {**rundir.load_file(str(tmp_path / "p.pt")), "image_encoder": "spatial", "image_feat": 6}
+    with pytest.raises(ValueError, match="critics study"):                  # a study's encoder: its tag reads it
+        evaluate.TrainedPolicy(old)

@@ -33,7 +33,6 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__)))) 
 import cli  # noqa: E402
 import command  # noqa: E402
 import evaluate  # noqa: E402
-import policy  # noqa: E402
 import report  # noqa: E402
 import tacrl  # noqa: E402
 from cli import ArgError  # noqa: E402
@@ -66,7 +65,10 @@ def ridge_r2(x_fit, y_fit, x_test, y_test, lam=1e-2):
 
 def diagnose(run_dir, resets=200, episodes=20, log=print):
     """critics.json's contents for one run dir."""
-    cfg = tacrl.read_config(run_dir)
+    try:
+        cfg = tacrl.read_config(run_dir)
+    except ValueError as e:                          # a run of the critics study: its tag's critics.py reads it
+        raise ArgError(f"{run_dir}: {e}")
     pi = report.load_policy(report.load_run(run_dir))
     torch.manual_seed(cfg.seed)                       # the run's networks as its training drew them, before it
     sac = tacrl.make_sac(cfg, device="cpu")
@@ -75,7 +77,7 @@ def diagnose(run_dir, resets=200, episodes=20, log=print):
     has_q = os.path.exists(ckpt)
     if has_q:
         sac.load_state_dict(torch.load(ckpt, map_location="cpu", weights_only=False)["sac"])
-        sac.q.eval()                                  # (DroQ's dropout off: Q as it is, not one draw of it)
+        sac.q.eval()
     else:                                             # the actor and its encoder alone, as policy.pt keeps them
         sac.actor_enc.load_state_dict(pi.encoder.state_dict())
         sac.actor.load_state_dict(pi.actor.state_dict())
@@ -116,7 +118,7 @@ def q_against_returns(sac, env, cfg, seeds, log):
         o = {key: torch.as_tensor(v[:T]) for key, v in ep["obs"].items()}
         with torch.no_grad():
             qs = sac.q(sac.critic_input(sac.enc(o), o), torch.as_tensor(ep["act"]))
-        q = policy.actor_value(qs).numpy()
+        q = torch.min(*qs).numpy()
         g = soft_returns(ep["rew"], np.append(logps[1:], 0.0), cfg.gamma, sac.log_alpha.exp().item())
         known = np.arange(T) < (T if term else T - TAIL)
         pairs += list(zip(q[known], g[known]))

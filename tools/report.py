@@ -14,14 +14,13 @@ caches those rows beside the runs. docs/results-notes.md, the hand-written readi
 under the tables its sections are titled after (read_notes).
 """
 import csv
-import dataclasses
 import glob
 import json
 import os
 import shutil
 import signal
 import sys
-from dataclasses import asdict
+from dataclasses import asdict, fields
 
 if __name__ == "__main__":     # Ctrl-C while torch and pybullet load: one line and exit 130
     signal.signal(signal.SIGINT, lambda *_: (sys.stderr.write("\nreport: interrupted\n"), os._exit(130)))
@@ -109,10 +108,23 @@ def write_world_cache(path, world, value):
         json.dump({"world": world, "value": value}, f, indent=2)
 
 
+def read_config(d):
+    """A run's config as a dict of today's flags, in config.json's order, and of flags retired to a git tag (the
+    critics study's, and older ones) where the run's differ from what today's code computes: the report reads
+    those runs too. A retired flag the report does not know is read as today's code where it is off (0, false)."""
+    raw = rundir.read_config(d)
+    order = list(raw)
+    study = command.study_options(raw)
+    known = {f.name for f in fields(tacrl.Config)}
+    study.update({k: v for k, v in [(k, raw.pop(k)) for k in list(raw) if k not in known] if v})
+    cfg = {**asdict(cli.from_dict(tacrl.Config, raw)), **study}
+    return dict(sorted(cfg.items(), key=lambda kv: order.index(kv[0]) if kv[0] in order else len(order)))
+
+
 def load_run(d):
     """A run dir as {'dir', 'cfg' (config dict), 'm' ({metrics column: array}), 'eval' (eval.json or None)}."""
     try:
-        cfg = asdict(tacrl.read_config(d))
+        cfg = read_config(d)
         ev = read_json(os.path.join(d, "eval.json")) if os.path.exists(os.path.join(d, "eval.json")) else None
         metrics = rundir.read_metrics(d)
         m = {k: np.array(metrics[k]) for k in ("episode", "return", "success", "sr15", "e_r_mm", "ex_r_mm", "elapsed_s")}
@@ -148,18 +160,19 @@ def method_of(cfg):
         name = f"{cfg['obs']}, {cfg['curriculum']} to {cfg['error_mm']:g} mm, roi {cfg['roi']}"
     default = tacrl.Config()
     named = ("task", "seed", "context", "vanilla", "obs", "curriculum", "roi", "error_mm") + command.NOT_LEARNING
-    changed = [f"{f.name} {cfg[f.name]}" for f in dataclasses.fields(default)
-               if f.name not in named and f.name in cfg and cfg[f.name] != f.default]
+    changed = [f"{k} {v}" for k, v in cfg.items()         # (a retired flag is in cfg only where not today's code)
+               if k not in named and (not hasattr(default, k) or v != getattr(default, k))]
     return name + (f" ({', '.join(changed)})" if changed else "")
 
 
 def command_of(cfg):
-    """The training command that reproduces a run: the flags whose values differ from the defaults."""
+    """The training command that reproduces a run: the flags whose values differ from the defaults (with the
+    critics study's flags, the command of its git tag)."""
     default, flags = tacrl.Config(), ["python tacrl.py"]
     for k, v in cfg.items():
-        if k in ("run_dir", "threads", "device", "resume", "track") or not hasattr(default, k):
+        if k in ("run_dir", "threads", "device", "resume", "track"):
             continue
-        if v != getattr(default, k) or k == "task":
+        if not hasattr(default, k) or v != getattr(default, k) or k == "task":        # (a retired flag: its tag's)
             flags.append(f"--{k.replace('_', '-')}" + ("" if v is True else f" {v:g}" if isinstance(v, float) else f" {v}"))
     return " ".join(flags)
 
@@ -338,7 +351,7 @@ def same_run(d, to):
     cfgs, rows = [], []
     try:
         for x in (d, to):
-            cfgs.append({k: v for k, v in asdict(tacrl.read_config(x)).items()   # (flags added since: defaults)
+            cfgs.append({k: v for k, v in read_config(x).items()                 # (flags added since: defaults)
                          if k not in (*command.RESUME_MAY_SET, "run_dir")})        # (a run dir may move)
             with open(os.path.join(x, "metrics.csv")) as f:
                 rows.append(list(csv.DictReader(f)))
@@ -783,7 +796,7 @@ def critics_kind(cfg):
         return "X - X_g an input"
     if cfg.get("aux_offset"):
         return "X - X_g a label"
-    return "+ time, E_r, Ex_r" if cfg.get("critic_extra") else "the paper's"
+    return "+ time, E_r, Ex_r" if cfg.get("critic_extra", True) else "the paper's"   # (study: where not today's)
 
 
 def critics_cells(run_dir):
@@ -815,8 +828,9 @@ def write_compare(patterns, out_dir, name, log=print):
           "Monte-Carlo return and their correlation; the R^2 with which a linear probe of the critics' features "
           "(privileged runs: the actor's) predicts x and y of X - X_g, and in brackets the same encoder's untrained.", "",
           "Critics: what they read and learn from, beside the actor's observation: nothing (the paper's), what the "
-          "agent knows besides it (`--critic-extra`: the time, E_r and Ex_r), X - X_g as a label (`--aux-offset`), or "
-          "X - X_g as an input (privileged).", "",
+          "agent knows besides it (the time, E_r and Ex_r, as `--critic multimodal` reads them), X - X_g as a label "
+          "(`--aux-offset`), or X - X_g as an input (privileged). Settings: the flags that differ from today's defaults; "
+          f"those of the critics study (issues 31 and 50) are on git tag {command.STUDY_TAG}.", "",
           "| settings | critics | seed | episodes | E_r last / max (mm) | first at final | eval SR " +
           " / ".join(f"{mm:g}" for mm in LEVELS) + " mm | minutes | Q - MC (corr) | probe R^2 x / y |",
           "|---" * 10 + "|"]
