@@ -49,6 +49,7 @@ with quiet_c_output():
     from pybullet_utils import bullet_client
 
 import control as ctl
+from shapes import board_bumps, chamfer_boxes, gear_teeth, plate_boxes, quat_from_matrix, ring_boxes, to_world
 
 
 def assets_dir():
@@ -87,8 +88,7 @@ FT_NOISE = np.array([0.1, 0.1, 0.1, 0.005, 0.005, 0.003])
 # No other data sheet we found gives one. The one published measurement: a UR e-series wrist sensor,
 # zeroed, the arm still, read (0.27, 1.38, 4.02) N off zero 5 min later
 # (github.com/UniversalRobots/Universal_Robots_ROS_Driver/issues/633), 2.1 x this rate as a random
-# walk. What the rate decides is measured in results/drift/ (bench/drift_effect.py): little for
-# trained policies, a lot for the hand-designed one.
+# walk. What the rate decides is in results/drift/: little for trained policies, a lot for the hand-designed one.
 FT_DRIFT = np.array([1.0, 1.0, 1.0, 0.02, 0.02, 0.01]) / 3 / np.sqrt(24.0)   # per sqrt(s)
 # The camera's shot noise: a pixel that reads y (0-255) collected y * E_PER_DN photo-electrons, so it
 # reads y +- sqrt(y / E_PER_DN). A shot-noise-limited pixel's best SNR is sqrt(full well): the Micron
@@ -181,98 +181,8 @@ class Context:
 
 
 # ---------------------------------------------------------------- geometry helpers
-def quat_from_matrix(R):
-    """Rotation matrix (3, 3) -> pybullet quaternion (x, y, z, w)."""
-    w = np.sqrt(max(1e-12, 1.0 + R[0, 0] + R[1, 1] + R[2, 2])) / 2.0
-    if w > 1e-3:
-        return [(R[2, 1] - R[1, 2]) / (4 * w), (R[0, 2] - R[2, 0]) / (4 * w), (R[1, 0] - R[0, 1]) / (4 * w), w]
-    i = int(np.argmax(np.diag(R)))
-    j, k = (i + 1) % 3, (i + 2) % 3
-    s = np.sqrt(max(1e-12, 1.0 + R[i, i] - R[j, j] - R[k, k])) * 2.0
-    q = [0.0, 0.0, 0.0, (R[k, j] - R[j, k]) / s]
-    q[i], q[j], q[k] = s / 4.0, (R[j, i] + R[i, j]) / s, (R[k, i] + R[i, k]) / s
-    return q
-
-
-def to_world(R, wrench):
-    """A tool-frame wrench (6,) in world axes, given the tool's rotation R."""
-    return np.concatenate([R @ wrench[:3], R @ wrench[3:]])
-
-
 def matrix_from_quat(q):
     return np.array(p.getMatrixFromQuaternion(q)).reshape(3, 3)
-
-
-def rot_x(a):
-    c, s = np.cos(a), np.sin(a)
-    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
-
-
-def ring_boxes(r_in, thick, z0, z1, n):
-    """A regular n-gon hole of inscribed radius r_in between heights z0 < z1, walled by n boxes of
-    radial thickness `thick`. Returns [(half_extents, position, R)]. The walls are a little longer
-    than a side so that their corners close; the overlap lies outside the hole."""
-    side = 2.0 * (r_in + thick) * np.tan(np.pi / n)
-    out = []
-    for i in range(n):
-        a = 2.0 * np.pi * i / n
-        pos = ((r_in + thick / 2) * np.cos(a), (r_in + thick / 2) * np.sin(a), (z0 + z1) / 2)
-        out.append(((thick / 2, side / 2, (z1 - z0) / 2), pos, ctl.rot_z(a)))
-    return out
-
-
-def chamfer_boxes(r_in, c, n, thick=0.002):
-    """A c x 45 deg chamfer at z in [-c, 0] on an n-gon of inscribed radius r_in: one box per side
-    whose inner face is the slope from (r_in, -c) to (r_in + c, 0); the box lies outward and below
-    the slope, inside the wall and the top ring, so nothing sticks into the hole or above the top."""
-    side = 2.0 * (r_in + c + thick) * np.tan(np.pi / n)
-    slope = c * np.sqrt(2.0)
-    out = []
-    for i in range(n):
-        a = 2.0 * np.pi * i / n
-        # in the wall's own frame (x radial out, z up): slope mid-point, then half the thickness
-        # along the outward-down normal (1, 0, -1)/sqrt(2)
-        mid = np.array([r_in + c / 2, 0.0, -c / 2]) + thick / 2 * np.array([1.0, 0.0, -1.0]) / np.sqrt(2)
-        R = ctl.rot_z(a) @ np.array([[np.cos(np.pi / 4), 0, np.sin(np.pi / 4)], [0, 1, 0],
-                                     [-np.sin(np.pi / 4), 0, np.cos(np.pi / 4)]])
-        # box axes: x = slope normal (outward-down), y = tangent, z = along the slope
-        out.append(((thick / 2, side / 2, slope / 2), tuple(ctl.rot_z(a) @ mid), R))
-    return out
-
-
-def board_bumps(r_clear, seed=BOARD_SEED):
-    """The board's bumps: [(sphere radius, centre (x, y, z))] in the board frame, each sphere sunk so that
-    a cap BUMP_H high and BUMP_A in radius stands above the top (z = 0), and wholly outside r_clear of
-    the axis (the hole and its chamfer stay exact)."""
-    rng, out = np.random.default_rng(seed), []
-    while len(out) < BUMPS:
-        h, a = rng.uniform(*BUMP_H), rng.uniform(*BUMP_A)
-        rho = (a * a + h * h) / (2 * h)                           # the sphere whose cap that is
-        d = np.sqrt(rng.uniform((r_clear + rho) ** 2, BUMP_R_MAX ** 2))   # uniform over the area
-        phi = rng.uniform(0, 2 * np.pi)
-        out.append((rho, (d * np.cos(phi), d * np.sin(phi), h - rho)))
-    return out
-
-
-def plate_boxes(opening, size, z0, z1):
-    """A square plate of side `size` with a square opening of half-side `opening`, as four boxes."""
-    h, w = (z1 - z0) / 2, (size / 2 - opening) / 2
-    zc = (z0 + z1) / 2
-    return [((w, size / 2, h), (opening + w, 0.0, zc), np.eye(3)),
-            ((w, size / 2, h), (-opening - w, 0.0, zc), np.eye(3)),
-            ((opening, w, h), (0.0, opening + w, zc), np.eye(3)),
-            ((opening, w, h), (0.0, -opening - w, zc), np.eye(3))]
-
-
-def gear_teeth(r_root, r_tip, width, n, z0, z1, phase=0.0):
-    """n radial teeth, boxes from r_root to r_tip, at angles phase + 2 pi i / n."""
-    out = []
-    for i in range(n):
-        a = phase + 2.0 * np.pi * i / n
-        r = (r_root + r_tip) / 2
-        out.append((((r_tip - r_root) / 2, width / 2, (z1 - z0) / 2), (r * np.cos(a), r * np.sin(a), (z0 + z1) / 2),
-                    ctl.rot_z(a)))
-    return out
 
 
 # ---------------------------------------------------------------- the tool, written into the URDF
@@ -411,9 +321,8 @@ class World:
         # torque-limited: full-strength velocity motors pressed 300 N spikes into the board and
         # bounced the admittance loop. With no free bodies in the scene nothing else needs gravity.
         bc.setGravity(0, 0, 0)
-        # Contacts break after 1 mm, not Bullet's 20 mm: at the default, a point made where a blade
-        # touched the chamfer stayed in the cache after the blade slid past it, still pushing up
-        # along the chamfer's normal, and held a centred peg 1 mm into the hole (bench/jam_noise.py).
+        # Contacts break after 1 mm, not Bullet's 20 mm, at which a cached point of a blade on the chamfer outlived
+        # the blade sliding past it and held a centred peg 1 mm into the hole (README difference 12)
         bc.setPhysicsEngineParameter(numSolverIterations=50, enableFileCaching=0, contactBreakingThreshold=0.001,
                                      contactSlop=CONTACT_SLOP)
         if self.gui:
@@ -430,8 +339,7 @@ class World:
         self.ft_joint, self.tool_link, self.cam_link = names["tool"], names["tool"], names["camera"]
         self.max_force = JOINT_TORQUE_CAP
         bc.enableJointForceTorqueSensor(self.robot, self.ft_joint, True)
-        bc.changeDynamics(self.robot, self.tool_link, collisionMargin=0.0)   # (a lateralFriction given in the same call
-        #                                          is ignored, measured: the tool keeps TOOL_FRICTION)
+        bc.changeDynamics(self.robot, self.tool_link, collisionMargin=0.0)   # (keeps TOOL_FRICTION: see BOARD_FRICTION)
         for j in self.arm:   # no default motors fighting ours
             bc.setJointMotorControl2(self.robot, j, p.VELOCITY_CONTROL, targetVelocity=0, force=self.max_force[j])
         self.plate, self.parts = self._build_board()
@@ -439,9 +347,8 @@ class World:
             for b in self.plate + [b for b, _ in self.parts]:
                 bc.changeDynamics(b, -1, lateralFriction=ctx.friction / TOOL_FRICTION)
         self.objects = self._build_objects()
-        # the camera's pose relative to the tip (one rigid body), taken from the arm as loaded: taken from
-        # the arm where an episode left it, it varied by 1e-7 m, the ROI by 2e-4 px, and the outcome of
-        # an episode with the episodes before it (bench/place_or_turn.py found it: HISTORY, issue 22)
+        # the camera's pose relative to the tip (one rigid body), from the arm as loaded: from the arm where an episode
+        # left it, it would vary by 1e-7 m and make an episode depend on the episodes before it
         x0, s = self.tool_pose(), bc.getLinkState(self.robot, self.cam_link, computeForwardKinematics=True)
         self.cam_rel = (x0[1].T @ (np.array(s[4]) - x0[0]), x0[1].T @ matrix_from_quat(s[5]))
         self.f_bias = np.zeros(6)
@@ -485,8 +392,8 @@ class World:
             top_ring = ring_boxes(r_h + CHAMFER, 0.012 - CHAMFER, -CHAMFER, 0.0, 16)
             parts += [(he, pos, R, board) for he, pos, R in top_ring]
             parts.append(((0.02, 0.02, (t - HOLE_DEPTH) / 2), (0, 0, -(t + HOLE_DEPTH) / 2), np.eye(3), BLACK))
-            bumps = self._compound([(rho, c, np.eye(3), board) for rho, c in board_bumps(r_h + CHAMFER + 3e-4)],
-                                   p.GEOM_SPHERE)                          # in the board's colour, as the plate
+            bumps = board_bumps(r_h + CHAMFER + 3e-4, BUMPS, BUMP_H, BUMP_A, BUMP_R_MAX, BOARD_SEED)
+            bumps = self._compound([(rho, c, np.eye(3), board) for rho, c in bumps], p.GEOM_SPHERE)   # the plate's colour
             return self._compound(plate) + bumps, [(b, 0.0) for b in self._compound(parts)]
         # gear board: plate, fixed mating gear (hub + teeth, a gap facing the shaft), shaft body
         plate = [((0.06, 0.06, t / 2), (0, 0, -t / 2), np.eye(3), board)]
@@ -514,10 +421,9 @@ class World:
 
     # -- placement ------------------------------------------------------------------------
     def part_top(self):
-        """Height above the board top of what the tool meets first: the board itself for the peg; the
-        shaft (and the mating gear beside it) for the gear. X_i is the env's approach above it, so that
-        even the largest z error starts the tool CLEAR of it: a tool spawned into the shaft was thrown
-        off the board by the solver's push-out."""
+        """Height above the board top of what the tool meets first: the board itself for the peg; the shaft
+        (and the mating gear beside it) for the gear. X_i is the env's approach above it, so that even the largest
+        z error starts the tool CLEAR of it (the solver's push-out throws a tool spawned into the shaft)."""
         return 0.0 if self.task == "peg" else max(SHAFT_HEIGHT, GEAR_THICK)
 
     def goal_in_board(self):

@@ -9,6 +9,7 @@ import control as ctl
 import instruments
 import contexts
 import scene
+import shapes
 import sim
 
 
@@ -395,8 +396,9 @@ def test_sensing_noise_reaches_the_policy_and_can_be_switched_off():
 
 def test_board_bumps_are_fixed_per_board_and_keep_out_of_the_hole():
     r_clear = scene.PEG_RADIUS + 5e-5 - scene.CONTACT_SLOP + scene.CHAMFER + 3e-4     # as World builds the default board
-    bumps = scene.board_bumps(r_clear)
-    assert bumps == scene.board_bumps(r_clear) and bumps != scene.board_bumps(r_clear, seed=1)
+    drawn = functools.partial(shapes.board_bumps, r_clear, scene.BUMPS, scene.BUMP_H, scene.BUMP_A, scene.BUMP_R_MAX)
+    bumps = drawn(scene.BOARD_SEED)
+    assert bumps == drawn(scene.BOARD_SEED) and bumps != drawn(1)
     w = scene.World("peg")
     (p_g, R_g), _ = w.place(contexts.CONTEXTS["loc-1"])
     top = p_g[2] + scene.HOLE_DEPTH
