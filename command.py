@@ -21,8 +21,8 @@ import sim
 from cli import ArgError, check_bounds, check_dir_writable, check_new_file, describe, from_dict, parse
 
 RESUME_MAY_SET = ("resume", "train_episodes", "stop_held", "threads", "track")   # to extend a run; nothing else changes
-NOT_LEARNING = ("eval", "resume", "run_dir", "track", "threads", "device", "gui", "episodes", "json", "video", "eval_levels",
-                "train_episodes", "stop_held")     # how a run is run, evaluated or extended, not what it learns
+NOT_LEARNING = ("eval", "resume", "run_dir", "track", "threads", "device", "gui", "episodes", "json", "video",
+                "eval_levels", "train_episodes", "stop_held")     # how a run is run, evaluated or extended
 # The critics study's flags (issues 31 and 50; docs/CRITICS.md) and their defaults, retired to the git tag
 # STUDY_TAG. A run dir written before reads on where they have the values under which it computes what today's
 # code does: these, and for --critic multimodal, STUDY_MULTIMODAL (the setting that learned best, today's).
@@ -33,7 +33,7 @@ STUDY_DEFAULTS = {"shift": 0, "drq": 1, "critic_extra": False, "next_encoder": "
                   "aux_curl": 0.0, "enc_lr": 0.0, "image_feat": 6}
 STUDY_MULTIMODAL = {"critic_extra": True, "next_encoder": "online", "fusion_norm": "modality", "q_norm": True}
 RUN_NAME_TAGS = (("clearance_mm", "c"), ("updates", "u"), ("warmup", "w"), ("batch", "b"), ("buffer", "buf"),
-                 ("lr", "lr"), ("gamma", "g"), ("target_entropy", "ent"))   # default_run_dir's tail, where not the default
+                 ("lr", "lr"), ("gamma", "g"), ("target_entropy", "ent"))   # default_run_dir's tail
 
 
 def keep_freed_memory():
@@ -110,8 +110,9 @@ def check(cfg):
             (cfg.eval and cfg.eval not in baselines.NAMES and not os.path.isfile(cfg.eval),
              f"--eval must be {', '.join(baselines.NAMES)} or an existing policy.pt file, not {cfg.eval!r}"),
             (cfg.eval == "two-step" and cfg.task != "peg", "--eval two-step is the peg-in-hole baseline (Table 1)"),
-            (not cfg.eval and contexts.held_out_family(cfg.context), f"--context {cfg.context} draws held-out scenes: it is "
-                                                             "for --eval (training draws its own with --randomize)"),
+            (not cfg.eval and contexts.held_out_family(cfg.context),
+             f"--context {cfg.context} draws held-out scenes: it is for --eval (training draws its own with "
+             "--randomize)"),
             (randomize, f"--randomize takes {randomize}, comma-separated, not "
              f"{cfg.randomize!r}" + (f" with --context {cfg.context}" if cfg.context != "train" else "")),
             (cfg.obs == "ts-ptk" and cfg.task != "peg", "--obs ts-ptk (keypoint RL) finds the peg board's hole; the "
@@ -245,8 +246,8 @@ def run_evaluation(cfg):
             if video is not None:
                 with scene.quiet_c_output():
                     video.release()
-        row.update({"task": cfg.task, "policy": cfg.eval, "error_mm": cfg.error_mm, "ex_r_mm": round(env.ex_r * 1000, 3),
-                    "context": cfg.context, "roi": cfg.roi, "seed": cfg.seed})
+        row.update({"task": cfg.task, "policy": cfg.eval, "error_mm": cfg.error_mm,
+                    "ex_r_mm": round(env.ex_r * 1000, 3), "context": cfg.context, "roi": cfg.roi, "seed": cfg.seed})
     print(evaluate.format_row(f"{cfg.eval if pi is None else 'TA-MRP'} {cfg.task} {cfg.error_mm:g}mm", row))
     if cfg.json:
         with open(cfg.json, "w") as f:

@@ -393,7 +393,7 @@ class World:
             parts += [(he, pos, R, board) for he, pos, R in top_ring]
             parts.append(((0.02, 0.02, (t - HOLE_DEPTH) / 2), (0, 0, -(t + HOLE_DEPTH) / 2), np.eye(3), BLACK))
             bumps = board_bumps(r_h + CHAMFER + 3e-4, BUMPS, BUMP_H, BUMP_A, BUMP_R_MAX, BOARD_SEED)
-            bumps = self._compound([(rho, c, np.eye(3), board) for rho, c in bumps], p.GEOM_SPHERE)   # the plate's colour
+            bumps = self._compound([(rho, c, np.eye(3), board) for rho, c in bumps], p.GEOM_SPHERE)   # plate's colour
             return self._compound(plate) + bumps, [(b, 0.0) for b in self._compound(parts)]
         # gear board: plate, fixed mating gear (hub + teeth, a gap facing the shaft), shaft body
         plate = [((0.06, 0.06, t / 2), (0, 0, -t / 2), np.eye(3), board)]

@@ -10,8 +10,8 @@ Eq. 16 (curriculum.py) widens the error range; then its evaluation (evaluate.py,
     python tacrl.py --task peg --eval two-step --error-mm 20    # the classical baseline (baselines.py)
 
 The file reads top to bottom: the run's config (every flag, once), Algorithm 1 (train), then `main`. The
-command line's checks and --eval are command.py's (cli.py: what every command shares). What a run directory holds is rundir.py's; several seeds and the
-paper's experiments at once: tools/sweep.py.
+command line's checks and --eval are command.py's (cli.py: what every command shares). What a run directory
+holds is rundir.py's; several seeds and the paper's experiments at once: tools/sweep.py.
 """
 import json
 import os
@@ -51,7 +51,7 @@ class Config:
     error_mm: float = opt(20.0, "error range E_r in mm (Eq. 13-15): evaluated, or the curriculum's final one",
                           bounds=(0.0, 30.0))
     context: str = opt("train", "board location and background (Sec. 5.1.4), or FAMILY:SEED, one scene of a family "
-                                "(place, light, colour, parts, mixed), or FAMILY:test, a held-out one each episode",
+                                f"({', '.join(contexts.FAMILIES)}), or FAMILY:test, a held-out one each episode",
                        contexts.ContextNames())
     roi: str = opt("task", "image window: task (Eq. 11's task attention) or a window of Fig. 11",
                    ("task", *sim.ROI_PRESETS))
@@ -59,33 +59,38 @@ class Config:
                               open_bounds=True)
     # Algorithm 1 (training only)
     train_episodes: int = train_opt(300, "max-episodes of Algorithm 1: the most a run trains", bounds=(1, None))
-    stop_held: int = train_opt(30, "stop when learned: after this many episodes at the final range, every 10 the greedy "
-                                   "policy tries 20 there; 19 wins twice in a row stop the run (0: never)", bounds=(0, None))
-    obs: str = train_opt("ts-ptv", "observations (Fig. 9); v: the visual baseline; ts-ptk: keypoint RL (the hole found "
-                                   "in the image by a detector, with the pose and wrench histories; peg)", policy.OBS_KINDS)
+    stop_held: int = train_opt(30, "stop when learned: after this many episodes at the final range, every 10 the "
+                                   "greedy policy tries 20 there; 19 wins twice in a row stop the run (0: never)",
+                               bounds=(0, None))
+    obs: str = train_opt("ts-ptv", "observations (Fig. 9); v: the visual baseline; ts-ptk: keypoint RL (the hole "
+                                   "found in the image by a detector, with the pose and wrench histories; peg)",
+                         policy.OBS_KINDS)
     curriculum: str = train_opt("adaptive", "error curriculum (Eq. 16, Fig. 10); ex10: Fig. 9's", curriculum.KINDS)
     vanilla: bool = train_opt(False, "the vanilla baseline, without a base policy: no trajectory, no spring, no "
                                      "stiffness from the estimated poses; F_d alone moves the tool")
-    critic: str = train_opt("privileged", "privileged: also X - X_g (README difference 13); multimodal: the paper's, with "
-                                          "the time and the curriculum's ranges (README difference 13)",
-                            ("privileged", "multimodal"))
-    augment: float = train_opt(0.0, "image jitter s: brightness, contrast x U(1-s, 1+s) (README difference 17)", bounds=(0, 1))
+    critic: str = train_opt("privileged", "privileged: also X - X_g; multimodal: the paper's, also the time and the "
+                                          "curriculum's ranges (README difference 13)", ("privileged", "multimodal"))
+    augment: float = train_opt(0.0, "image jitter s: brightness, contrast x U(1-s, 1+s) (README difference 17)",
+                               bounds=(0, 1))
     randomize: str = train_opt("", "draw each episode's scene from these families' training scenes, comma-separated "
-                                   "(domain randomization: place, light, colour, parts, mixed)")
+                                   f"(domain randomization: {', '.join(contexts.FAMILIES)})")
     image_norm: str = train_opt("fixed", "the image's grey levels as the encoder reads them: x / 255 - 0.5 (fixed), or "
                                          "each image standardised by its own mean and spread (image; ours)",
                                 policy.IMAGE_NORMS)
     updates: int = train_opt(200, "SAC gradient steps after each episode (Sec. 5.1.1: 200)", bounds=(0, None))
-    warmup: int = train_opt(20, "random-action episodes before the first update (the authors' loop: 20)", bounds=(0, None))
+    warmup: int = train_opt(20, "random-action episodes before the first update (the authors' loop: 20)",
+                            bounds=(0, None))
     batch: int = train_opt(64, "SAC batch size", bounds=(1, None))
     buffer: int = train_opt(50000, "replay capacity, transitions (at least an episode and a batch)", bounds=(1, None))
     lr: float = train_opt(3e-4, "Adam step size of actor, critics and temperature", bounds=(0, 1), open_bounds=True)
-    gamma: float = train_opt(0.95, "discount (0.99 let the critics thrash: README difference 10)", bounds=(0, 1), open_bounds=True)
+    gamma: float = train_opt(0.95, "discount (0.99 let the critics thrash: README difference 10)", bounds=(0, 1),
+                             open_bounds=True)
     target_entropy: float = train_opt(-6.0, "SAC's entropy target (the usual -|A|)")
     eval_levels: str = train_opt("5,10,15,20", "error ranges (mm) evaluated after training (Table 2)")
     run_dir: str = train_opt("", "run directory, new or empty (default: runs/<task>-<obs>-...-s<seed>)")
-    track: bool = train_opt(False, "also log to TensorBoard in <run dir>/tb: metrics.csv's columns, the losses, now and "
-                                   "then the task-attention image (pip install -e '.[track]'; tensorboard --logdir runs)")
+    track: bool = train_opt(False, "also log to TensorBoard in <run dir>/tb: metrics.csv's columns, the losses, now "
+                                   "and then the task-attention image (pip install -e '.[track]'; tensorboard "
+                                   "--logdir runs)")
     # evaluation (Tables 1-2)
     episodes: int = opt(20, "evaluation episodes a level (the paper: 20 test trials)", bounds=(1, None))
     json: str = opt("", "also write the evaluation row to this new JSON file", mode="eval")
@@ -93,8 +98,8 @@ class Config:
                          ".mp4 (H.264, where OpenCV has it): a browser plays either", mode="eval")
     # the machine
     device: str = opt("auto", "where torch runs", ("auto", "cpu", "cuda"))
-    threads: int = opt(0, "CPU threads of an update: the two halves of each batch side by side (2) or one after the other "
-                          "(1), the same numbers either way (0: 2 where there are 2 cores)", bounds=(0, 2))
+    threads: int = opt(0, "CPU threads of an update: the two halves of each batch side by side (2) or one after the "
+                          "other (1), the same numbers either way (0: 2 where there are 2 cores)", bounds=(0, 2))
     gui: bool = opt(False, "open the PyBullet window")
 
     @property
@@ -105,7 +110,7 @@ class Config:
 
 POSE_SCALE = np.array([sim.E_R_FINAL] * 3 + [sim.E_ROT_FINAL] * 3)   # m, rad: the encoders' pose units
 STATE_DIM = 7                                                        # what privileged critics read (critic_state)
-EXTRA_DIM = 3                                                        # what the paper's critics read besides (critic_extra)
+EXTRA_DIM = 3                                                        # the paper's critics' extras (critic_extra)
 VAL_SEED, VAL_EPISODES, VAL_WINS, VAL_EVERY, VAL_PASSES = 2000, 20, 19, 10, 2   # stop when learned: 19 of 20 twice
 
 
@@ -195,15 +200,16 @@ def critic_extra(info):
     """What the paper's critics (--critic multimodal) read besides the actor's observation, obs['extra'] (EXTRA_DIM,)
     (README difference 13): the time as a fraction of the episode and the curriculum's E_r and Ex_r over the final
     range, all of which the agent knows (the reward's W and the time left change with them)."""
-    return np.array([info["t"] * sim.POLICY_HZ / sim.MAX_STEPS, info["e_r"] / sim.E_R_FINAL, info["ex_r"] / sim.E_R_FINAL],
-                    np.float32)
+    return np.array([info["t"] * sim.POLICY_HZ / sim.MAX_STEPS, info["e_r"] / sim.E_R_FINAL,
+                     info["ex_r"] / sim.E_R_FINAL], np.float32)
 
 
 def make_env(cfg, **kw):
     """The run's env: its task, context, view, clearance and largest range, with the hand-designed part (none for
     --vanilla) and, for keypoint RL, the keypoint in the observation."""
-    return sim.AssemblyEnv(cfg.task, cfg.context, roi=cfg.roi, clearance=cfg.clearance_mm / 1000, e_r_max=cfg.error_mm / 1000,
-                           base_policy=not cfg.vanilla, keypoint=cfg.obs == "ts-ptk", randomize=cfg.families, **kw)
+    return sim.AssemblyEnv(cfg.task, cfg.context, roi=cfg.roi, clearance=cfg.clearance_mm / 1000,
+                           e_r_max=cfg.error_mm / 1000, base_policy=not cfg.vanilla, keypoint=cfg.obs == "ts-ptk",
+                           randomize=cfg.families, **kw)
 
 
 def make_sac(cfg, device=None):
@@ -272,9 +278,9 @@ def finish(cfg, sac, curr, e_r_max, seconds, log):
     pi = evaluate.load_policy(policy_path, sac.device)
     levels = sorted({float(x) for x in cfg.eval_levels.split(",")})
     with evaluate.eval_env(cfg.task, pi, cfg.context, cfg.roi, cfg.clearance_mm, gui=cfg.gui) as env:
-        rows = evaluate.evaluate_levels(env, pi, levels, cfg.episodes, evaluate.EVAL_SEED + cfg.seed, log=lambda row: log(
-            evaluate.format_row(f"TA-MRP {cfg.task} {row['error_mm']:g}mm", row)))
-    trained = len(rundir.read_metrics(cfg.run_dir)["episode"])     # fewer than --train-episodes when it stopped as learned
+        show = lambda row: log(evaluate.format_row(f"TA-MRP {cfg.task} {row['error_mm']:g}mm", row))   # noqa: E731
+        rows = evaluate.evaluate_levels(env, pi, levels, cfg.episodes, evaluate.EVAL_SEED + cfg.seed, log=show)
+    trained = len(rundir.read_metrics(cfg.run_dir)["episode"])     # fewer than --train-episodes if stopped as learned
     result = {"task": cfg.task, "obs": cfg.obs, "curriculum": cfg.curriculum, "context": cfg.context, "roi": cfg.roi,
               "seed": cfg.seed, "eval_seed": evaluate.EVAL_SEED + cfg.seed, "train_episodes": trained,
               "world": sim.WORLD, "train_minutes": round(seconds / 60, 1), "rows": rows}
