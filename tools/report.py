@@ -612,7 +612,7 @@ def goal_applies(ctx):
     return ctx.startswith("loc-") or (c.objects and not c.on_board)
 
 
-def describe(name):
+def context_change(name):
     """One line on what a context changes against training's."""
     c, t = contexts.CONTEXTS[name], contexts.CONTEXTS["train"]
     what = []
@@ -772,7 +772,7 @@ def write_contexts(patterns, out_dir, levels=LEVELS, episodes=20, jobs=1, log=pr
     md += ["", "Training (each run stops when learned, at most its --train-episodes; one trained on since, with "
            "`--resume DIR --train-episodes N --stop-held 0`, says where it had first finished):", ""]
     md += [f"- {task}, {view}: {', '.join(v)}" for (task, view), v in sorted(trained.items())]
-    md += ["", "The contexts:", ""] + [f"- `{name}`: {describe(name)}" for name in contexts.CONTEXTS]
+    md += ["", "The contexts:", ""] + [f"- `{name}`: {context_change(name)}" for name in contexts.CONTEXTS]
     md += ["", PAPER_FIG12, ""]
     for task, by_view in bars.items():
         name = f"ctx-{task}-bars.png"
