@@ -368,8 +368,13 @@ def test_every_context_is_evaluated_once_and_the_table_names_each(tiny_run, tmp_
     asked = []
     real_rows = report.context_rows
     monkeypatch.setattr(report, "context_rows", lambda job: asked.append(job[1]) or real_rows(job))
-    assert report.write_families(tiny_run["dir"], str(out), episodes=1, log=lambda *_: None) == 0    # families alone
+    readme = tmp_path / "README.md"                    # its families table is made anew, the rest kept as it was
+    readme.write_text(f"# x\n\n{report.README_FAMILIES}:\n\n| old | table |\n|---|---|\n| typed | 0.97 |\n\nthe end\n")
+    assert report.write_families(tiny_run["dir"], str(out), episodes=1, log=lambda *_: None, readme=str(readme)) == 0
     assert asked == ["parts:test"] and f"| peg | {view} | 1 | - |" in (out / "FAMILIES.md").read_text()
+    lines = readme.read_text().splitlines()
+    assert lines[:4] == ["# x", "", f"{report.README_FAMILIES}:", ""] and lines[-2:] == ["", "the end"]
+    assert "typed" not in readme.read_text() and lines[4].endswith("| train | parts |")
     monkeypatch.setattr(report, "context_rows", real_rows)
     assert (out / "ctx-peg-bars.png").stat().st_size > 0 and (out / "ctx-peg-views.png").stat().st_size > 0
     cached = json.loads(open(os.path.join(tiny_run["dir"], "eval-ctx-loc-2.json")).read())

@@ -686,9 +686,9 @@ def evaluate_jobs(jobs_list, jobs):
         return list(ex.map(context_rows, jobs_list))
 
 
-def family_section(runs, episodes, jobs, log):
+def family_section(runs, episodes, jobs, log, readme=None):
     """The table of SR at FAMILY_MM per family of scenes (held-out seeds), each run's training column from its
-    eval.json (the same seeds and code), as markdown lines."""
+    eval.json (the same seeds and code), as markdown lines; with readme, that file's table of them too."""
     jobs_list = [(r["dir"], f"{family}:test", (FAMILY_MM,), episodes) for r in runs for family in sim.FAMILIES]
     log(f"  {len(runs)} runs x {len(sim.FAMILIES)} families at {FAMILY_MM:g} mm, {len(jobs_list) * episodes} episodes "
         f"in {jobs} processes (cached ones are read back)")
@@ -707,25 +707,54 @@ def family_section(runs, episodes, jobs, log):
     for (task, view), by_family in sorted(families.items(), key=lambda kv: (kv[0][0], not kv[0][1].startswith(VIEWS["task"]), kv[0][1])):
         md.append(f"| {task} | {view} | {len(by_family[sim.FAMILIES[0]])} | {cell(by_family.get('train', []))} | "
                   + " | ".join(cell(by_family.get(f, [])) for f in sim.FAMILIES) + " |")
+    if readme:
+        write_readme_families(families, readme, log)
     return md + ["", "The families (ranges in `contexts.py`, ours): " + "; ".join(f"`{f}`: {FAMILY_WHAT[f]}"
                                                                                for f in sim.FAMILIES) + "."]
 
 
-def write_families(patterns, out_dir, episodes=20, jobs=1, log=print):
-    """The families alone (no named context): out_dir/FAMILIES.md, for runs not yet in the contexts' report."""
+README_FAMILIES = "Held-out scenes drawn from families"      # the README's caption of its families table
+
+
+def write_readme_families(families, path, log):
+    """The README's families table, made anew in place under its caption: task attention as trained by default and
+    with the robust options (image_norm image), SR at FAMILY_MM, the mean over seeds and the worst seed's."""
+    with open(path) as f:
+        lines = f.read().split("\n")
+    at = next((i for i, ln in enumerate(lines) if ln.startswith(README_FAMILIES)), None)
+    if at is None:
+        raise ArgError(f"{path}: no line starts {README_FAMILIES!r}, the families table's caption")
+    start = next(i for i in range(at, len(lines)) if lines[i].startswith("|"))
+    end = next((i for i in range(start, len(lines)) if not lines[i].startswith("|")), len(lines))
+    shown = [(k, v) for k, v in sorted(families.items()) if k[1] == VIEWS["task"] or
+             (k[1].startswith(VIEWS["task"]) and "image_norm image" in k[1])]
+    cell = lambda x: f"{np.mean(x):.2f} ({min(x):.2f})" if x else "-"      # noqa: E731
+    table = ["| policy, mean (worst seed) | seeds | train | " + " | ".join(sim.FAMILIES) + " |",
+             "|---" * (3 + len(sim.FAMILIES)) + "|"]
+    table += [f"| {task}, {view} | {len(by[sim.FAMILIES[0]])} | {cell(by.get('train', []))} | "
+              + " | ".join(cell(by.get(f, [])) for f in sim.FAMILIES) + " |" for (task, view), by in shown]
+    with open(path, "w") as f:
+        f.write("\n".join(lines[:start] + table + lines[end:]))
+    log(f"wrote {path}'s families table")
+
+
+def write_families(patterns, out_dir, episodes=20, jobs=1, log=print, readme=None):
+    """The families alone (no named context): out_dir/FAMILIES.md, for runs not yet in the contexts' report; with
+    readme, that file's families table too."""
     runs = ours_runs(patterns, out_dir)
     md = ["# Families of scenes, held out", "", f"Made by `python tools/report.py --families \"{patterns}\"` "
-          f"(world {sim.WORLD}).", ""] + family_section(runs, episodes, jobs, log)
+          f"(world {sim.WORLD}).", ""] + family_section(runs, episodes, jobs, log, readme)
     with open(os.path.join(out_dir, "FAMILIES.md"), "w") as f:
         f.write("\n".join(md) + "\n")
     log(f"wrote {out_dir}/FAMILIES.md")
     return 0
 
 
-def write_contexts(patterns, out_dir, levels=LEVELS, episodes=20, jobs=1, log=print):
+def write_contexts(patterns, out_dir, levels=LEVELS, episodes=20, jobs=1, log=print, readme=None):
     """Train in one context, test in all: every run of ours (task attention) and of its full-view twin made in
     this world, evaluated in every context of contexts.CONTEXTS at `levels` (mm), `episodes` trials each; writes
-    out_dir/CONTEXTS.md with the table, the goal's check, Fig. 12 and each context's full and task views."""
+    out_dir/CONTEXTS.md with the table, the goal's check, Fig. 12 and each context's full and task views (with
+    readme, that file's families table too)."""
     runs = ours_runs(patterns, out_dir)
     # a run trained in scenes drawn from the families (--randomize) has met light, colours and parts of the kinds
     # the named backgrounds show: it is tested on the families' held-out seeds alone
@@ -765,7 +794,7 @@ def write_contexts(patterns, out_dir, levels=LEVELS, episodes=20, jobs=1, log=pr
         cells = [f"{m:.2f} ({lo:.2f}-{hi:.2f})" if len(sr) > 1 else f"{m:.2f}"
                  for m, lo, hi in zip(sr.mean(0), sr.min(0), sr.max(0))]
         md.append(f"| {task} | {view} | {ctx} | {len(seeds)} | {' | '.join(cells)} | {cr.mean():.1f} | {goal} |")
-    md += ["", "## Families of scenes, held out", ""] + family_section(runs, episodes, jobs, log)
+    md += ["", "## Families of scenes, held out", ""] + family_section(runs, episodes, jobs, log, readme)
     if len(named) < len(runs):
         md += ["", "A run trained with `--randomize` appears in the families alone: its training scenes were drawn from "
                "the families, so the named backgrounds are of kinds it has seen; the families' held-out seeds are its test."]
@@ -869,6 +898,8 @@ def main(argv=None):
     ap.add_argument("--compare", default="", metavar="NAME", help="a table and curves of the runs by learning setting "
                     "instead, to --out/NAME.md and NAME.png")
     ap.add_argument("--jobs", type=int, default=1, help="processes for --contexts' evaluations (one torch thread each)")
+    ap.add_argument("--readme", default="", metavar="PATH", help="with --contexts or --families, also make this README's "
+                    f"families table anew (under the line that starts {README_FAMILIES!r})")
     a = ap.parse_args(argv)
     if a.jobs < 1:
         raise ArgError(f"--jobs must be at least 1, not {a.jobs}")
@@ -881,9 +912,9 @@ def main(argv=None):
             raise ArgError(f"--compare takes a file name of letters, digits, - and _, not {a.compare!r}")
         write_compare(a.runs, a.out, a.compare)
     elif a.contexts:
-        write_contexts(a.runs or CONTEXT_RUNS, a.out, jobs=a.jobs)
+        write_contexts(a.runs or CONTEXT_RUNS, a.out, jobs=a.jobs, readme=a.readme)
     elif a.families:
-        write_families(a.runs or CONTEXT_RUNS, a.out, jobs=a.jobs)
+        write_families(a.runs or CONTEXT_RUNS, a.out, jobs=a.jobs, readme=a.readme)
     else:
         write_report(a.runs or REPORT_RUNS, a.out)
 
