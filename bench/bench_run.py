@@ -43,7 +43,8 @@ def timed_run(tree, flags, run_dir):
     wall = time.perf_counter() - t0
     with open(os.path.join(run_dir, "metrics.csv")) as f:
         rows = list(csv.DictReader(f))
-    return (wall, float(rows[-1]["elapsed_s"]), *(sum(float(r[k]) for r in rows) for k in ("update_s", "env_s", "steps")))
+    return (wall, float(rows[-1]["elapsed_s"]),
+            *(sum(float(r[k]) for r in rows) for k in ("update_s", "env_s", "steps")))
 
 
 def main():

@@ -95,7 +95,8 @@ def run_ours(seed, threads, root, run_dir=None):
     episodes = [(float(r["elapsed_s"]), float(r["e_r_mm"]) / 1000, int(r["success"]), float(r["sr15"])) for r in rows]
     row20 = next(r for r in result["rows"] if r["error_mm"] == 20.0)
     return {"train_minutes": result["train_minutes"], "episodes": len(rows), "seed": result["seed"],
-            "to_criterion": minutes_to_criterion(episodes), "sr20": row20["success_rate"], "ct20": row20["completion_time_s"]}
+            "to_criterion": minutes_to_criterion(episodes), "sr20": row20["success_rate"],
+            "ct20": row20["completion_time_s"]}
 
 
 def run_sb3(seed, threads, seconds):

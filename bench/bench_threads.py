@@ -88,7 +88,8 @@ def main():
     for col, unit in ((1, "updates/s"), (0, "actions/s right after start")):
         med = {k: float(np.median([r[col] for r in v])) for k, v in runs.items()}
         base = med[VARIANTS[0][0], False]
-        print(f"\n{'variant':52s} {'alone':>8s} {'busy':>8s} {'slowdown':>9s} {'alone / default':>16s}  every run, alone | busy")
+        print(f"\n{'variant':52s} {'alone':>8s} {'busy':>8s} {'slowdown':>9s} {'alone / default':>16s}  every run, "
+              "alone | busy")
         for name, *_ in VARIANTS:
             alone, busy = med[name, False], med[name, True]
             every = " | ".join(" ".join(f"{r[col]:.0f}" for r in runs[name, b]) for b in (False, True))

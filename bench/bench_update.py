@@ -102,7 +102,8 @@ def main():
                   f"({1000 / whole:5.1f} updates/s)")
             for k, v in p.items():
                 print(f"  {k:66s} {v:6.2f} ms  {v / whole:5.1%}")
-            print(f"  {'the rest: Python, autograd, small ops':66s} {whole - top:6.2f} ms  {(whole - top) / whole:5.1%}")
+            print(f"  {'the rest: Python, autograd, small ops':66s} {whole - top:6.2f} ms  "
+                  f"{(whole - top) / whole:5.1%}")
 
 
 if __name__ == "__main__":

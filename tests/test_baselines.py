@@ -67,7 +67,8 @@ def test_two_step_calibration_is_the_same_in_every_process_and_after_any_history
 def test_ablation_runs_get_run_dirs_of_their_own():
     dirs = [tacrl.parse_args(argv).run_dir for argv in (
         [], ["--roi", "full"], ["--curriculum", "none", "--error-mm", "10"], ["--curriculum", "none"],
-        ["--curriculum", "none", "--error-mm", "30", "--roi", "200", "--seed", "1"], ["--obs", "v", "--critic", "multimodal"])]
+        ["--curriculum", "none", "--error-mm", "30", "--roi", "200", "--seed", "1"],
+        ["--obs", "v", "--critic", "multimodal"])]
     assert dirs == ["runs/peg-ts-ptv-adaptive-s0", "runs/peg-ts-ptv-adaptive-roi-full-s0",
                     "runs/peg-ts-ptv-none-e10-s0", "runs/peg-ts-ptv-none-s0", "runs/peg-ts-ptv-none-e30-roi-200-s1",
                     "runs/peg-v-adaptive-multimodal-s0"]

@@ -34,7 +34,8 @@ def test_the_readmes_command_through_the_shell_in_a_tiny_configuration_without_t
         (tmp_path / "hidden" / f"{extra}.py").write_text(f"raise ImportError('{extra} is not installed')\n")
     tiny = ["--train-episodes", "1", "--warmup", "0", "--updates", "2", "--batch", "8", "--buffer", "240",
             "--episodes", "1", "--eval-levels", "0"]
-    shell = lambda *argv: subprocess.run([sys.executable, os.path.join(ROOT, "tacrl.py"), *argv], capture_output=True,  # noqa: E731
+    shell = lambda *argv: subprocess.run([sys.executable, os.path.join(ROOT, "tacrl.py"), *argv],  # noqa: E731
+                                         capture_output=True,
                                          text=True, cwd=tmp_path, timeout=300,
                                          env={**os.environ, "PYTHONPATH": str(tmp_path / "hidden")})
     r = shell("--task", "peg", *tiny)

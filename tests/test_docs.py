@@ -7,7 +7,8 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 def lines_of(path):
     """Lines of a file, or of a folder's .py files together."""
-    paths = [os.path.join(path, f) for f in sorted(os.listdir(path)) if f.endswith(".py")] if os.path.isdir(path) else [path]
+    paths = [os.path.join(path, f) for f in sorted(os.listdir(path)) if f.endswith(".py")] if os.path.isdir(path) \
+        else [path]
     total = 0
     for p in paths:
         with open(p) as f:

@@ -31,7 +31,8 @@ def snapshot(root):
     for d, dirs, files in os.walk(root):
         for name in dirs + files:
             st_ = os.stat(os.path.join(d, name))
-            out[os.path.relpath(os.path.join(d, name), root)] = "dir" if name in dirs else (st_.st_size, st_.st_mtime_ns)
+            out[os.path.relpath(os.path.join(d, name), root)] = "dir" if name in dirs else (st_.st_size,
+                                                                                            st_.st_mtime_ns)
     return out
 
 
@@ -59,7 +60,8 @@ def workdir(tmp_path_factory, unfinished_run):
     (tmp_path / "empty.pt").write_bytes(b"")
     (tmp_path / "pickled.pt").write_bytes(pickle.dumps({"task": "peg"}))     # a pickle, not torch's zip format
     torch.save({"task": "peg"}, tmp_path / "notapolicy.pt")                   # torch's format, not a policy
-    for name, config in (("badtype", '{"episodes": "x"}'), ("notjson", "{task: peg"), ("badchoice", '{"task": "screw"}'),
+    for name, config in (("badtype", '{"episodes": "x"}'), ("notjson", "{task: peg"), ("badchoice", '{"task": '
+                                                                                                    '"screw"}'),
                          ("notobject", "[1, 2]"), ("null", "null")):
         (tmp_path / name).mkdir()
         (tmp_path / name / "config.json").write_text(config)

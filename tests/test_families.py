@@ -94,9 +94,11 @@ def test_workbench_objects_stand_on_the_board_beyond_reach_some_in_the_roi_some_
             assert contexts.OBJECTS_PER_SCENE[0] <= len(objects) <= contexts.OBJECTS_PER_SCENE[1]
             for i, (he, xy, _) in enumerate(objects):
                 he, xy = np.array(he), np.array(xy)
-                assert np.all((contexts.OBJECT_SIDE[0] - 1e-4 <= 2 * he[:2]) & (2 * he[:2] <= contexts.OBJECT_SIDE[1] + 1e-4))
+                lo, hi = contexts.OBJECT_SIDE
+                assert np.all((lo - 1e-4 <= 2 * he[:2]) & (2 * he[:2] <= hi + 1e-4))
                 assert contexts.OBJECT_TALL[0] - 1e-4 <= 2 * he[2] <= contexts.OBJECT_TALL[1] + 1e-4
-                assert np.all(np.abs(xy) + he[:2] <= contexts.BOARD_HALF + 1e-4)                      # whole on the board
+                # whole on the board
+                assert np.all(np.abs(xy) + he[:2] <= contexts.BOARD_HALF + 1e-4)
                 near = np.hypot(*np.maximum(np.abs(xy) - he[:2], 0))
                 reach = scene.BUMP_R_MAX if task == "peg" else (
                     scene.GEAR_R_TIP + sim.E_R_FINAL * np.sqrt(2) if 2 * he[2] > scene.SHAFT_HEIGHT - 0.002

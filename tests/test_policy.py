@@ -178,7 +178,8 @@ def test_an_update_in_halves_is_the_whole_batch_update_within_float_tolerance_on
                                     "extra": (3,)})
     obs = {**fake_obs(rng, 101), "state": rng.normal(size=(101, 7)).astype(np.float32),
            "extra": rng.normal(size=(101, 3)).astype(np.float32)}
-    buf.add_episode({"obs": obs, "act": rng.uniform(-1, 1, (100, 6)), "rew": rng.normal(size=100), "term": np.zeros(100)})
+    buf.add_episode({"obs": obs, "act": rng.uniform(-1, 1, (100, 6)), "rew": rng.normal(size=100),
+                     "term": np.zeros(100)})
     batch = buf.sample(64, rng)
     torch.manual_seed(0)
     sac = policy.SAC("ts-ptv", state_dim=state_dim, extra_dim=0 if state_dim else 3, threads=2)

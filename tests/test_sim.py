@@ -395,7 +395,8 @@ def test_sensing_noise_reaches_the_policy_and_can_be_switched_off():
 
 
 def test_board_bumps_are_fixed_per_board_and_keep_out_of_the_hole():
-    r_clear = scene.PEG_RADIUS + 5e-5 - scene.CONTACT_SLOP + scene.CHAMFER + 3e-4     # as World builds the default board
+    # as World builds the default board
+    r_clear = scene.PEG_RADIUS + 5e-5 - scene.CONTACT_SLOP + scene.CHAMFER + 3e-4
     drawn = functools.partial(shapes.board_bumps, r_clear, scene.BUMPS, scene.BUMP_H, scene.BUMP_A, scene.BUMP_R_MAX)
     bumps = drawn(scene.BOARD_SEED)
     assert bumps == drawn(scene.BOARD_SEED) and bumps != drawn(1)

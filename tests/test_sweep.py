@@ -31,7 +31,8 @@ def stand_in(job, threads):
     """A run's command as the sweep builds it, checked as tacrl.py checks it, and a stand-in that runs in a blink
     (the README's command and the fixtures of test_train run tacrl.py itself)."""
     cmd = REAL_COMMAND(job, threads)
-    assert cmd[:2] == [sys.executable, os.path.join(sweep.PROJECT, "tacrl.py")] and cmd[-2:] == ["--threads", str(threads)]
+    assert cmd[:2] == [sys.executable, os.path.join(sweep.PROJECT, "tacrl.py")]
+    assert cmd[-2:] == ["--threads", str(threads)]
     if job.state == "new":
         assert tacrl.parse_args(cmd[2:]).run_dir == job.run_dir
     return [sys.executable, "-c", f"import os; print('ep', {job.state!r}, os.environ['OMP_NUM_THREADS'])"]
@@ -54,7 +55,8 @@ def test_a_sweep_runs_here_skips_what_finished_and_resumes_what_stopped(tmp_path
     assert "3 runs, 1 finished already; 2 to run here" in out and out.count("finished (") == 2
     assert [open(os.path.join(d, "train.log")).read().split() for d in dirs[1:]] == [["ep", "resume", "1"],
                                                                                     ["ep", "new", "1"]]
-    assert cli.command("sweep", lambda: sweep.main(["--seeds", "0", "--root", root, "--", *TINY, "--eval-levels", "2"])) == 2
+    argv = ["--seeds", "0", "--root", root, "--", *TINY, "--eval-levels", "2"]
+    assert cli.command("sweep", lambda: sweep.main(argv)) == 2
     assert "holds another run (its eval_levels differ)" in capsys.readouterr().err     # nothing overwritten
 
 
@@ -74,7 +76,8 @@ def test_progress_lines_from_runs_started_at_once_stay_whole():
         t.start()
     for t in threads:
         t.join()
-    assert sorted("".join(out).splitlines()) == [f"started runs/r{i} (new), its log runs/r{i}/train.log" for i in range(4)]
+    assert sorted("".join(out).splitlines()) == [f"started runs/r{i} (new), its log runs/r{i}/train.log"
+                                                 for i in range(4)]
 
 
 def test_a_sweep_runs_as_ray_tasks_on_a_local_instance(tmp_path, monkeypatch):
@@ -121,7 +124,8 @@ def test_failed_runs_are_named_and_the_sweep_exits_1(tmp_path, capsys, monkeypat
     assert err.startswith("sweep: failed:") and err.count("\n") == 1 and all(d in err for d in ("s0", "s1"))
 
 
-def test_runs_never_ask_for_more_threads_than_cores_and_a_warning_says_where_the_user_does(tmp_path, capsys, monkeypatch):
+def test_runs_never_ask_for_more_threads_than_cores_and_a_warning_says_where_the_user_does(tmp_path, capsys,
+                                                                                           monkeypatch):
     monkeypatch.setattr(sweep.os, "cpu_count", lambda: 2)
     argv = ["--seeds", "0,1,2", "--root", str(tmp_path), "--dry-run"]
     assert cli.command("sweep", lambda: sweep.main([*argv, "--", *TINY])) == 0

@@ -35,7 +35,8 @@ def plot_groups(groups, keys, out, title):
             mean, lo, hi = bootstrap_band(curves)
             ep = np.arange(1, len(mean) + 1)
             seeds = sorted({r["cfg"]["seed"] for r in runs})
-            line, = ax.plot(ep, mean, lw=1.2, color=colours[i % len(colours)], ls="--" if i >= 10 else "-", label=f"{name} (seed{'s' * (len(seeds) > 1)} {', '.join(map(str, seeds))})")
+            label = f"{name} (seed{'s' * (len(seeds) > 1)} {', '.join(map(str, seeds))})"
+            line, = ax.plot(ep, mean, lw=1.2, color=colours[i % len(colours)], ls="--" if i >= 10 else "-", label=label)
             if len(runs) > 1:
                 ax.fill_between(ep, lo, hi, alpha=0.2, color=line.get_color())
         ax.set_xlabel("episode")

@@ -54,7 +54,8 @@ PAPER_TABLE2 = {("peg", "train"): "1.00 / 1.00 / 1.00 / 0.80", ("peg", "loc-1"):
 TABLE1_ROWS = {"vanilla": "vanilla RL (`--vanilla`: no base policy)", "visual": "visual RL (`--obs v`)",
                VISUAL_PAPER_CRITICS: "visual RL, the paper's critics", "keypoint": "keypoint RL (`--obs ts-ptk`)",
                "ours": "ours (TA-MRP + adaptive curriculum)", "two-step": "two-step (visual servo, spiral search)"}
-UNSEEN = ("loc-1", "loc-2")     # our stand-ins for Table 2's 'unseen 1' and 'unseen 2': the real board at two other places
+# our stand-ins for Table 2's 'unseen 1' and 'unseen 2': the real board at two other places
+UNSEEN = ("loc-1", "loc-2")
 TABLE2_LABELS = {"train": "training context", "loc-1": "unseen 1 (`loc-1`)", "loc-2": "unseen 2 (`loc-2`)"}
 FIG12_CONTEXTS = ("loc-1", "bg-objects")   # Fig. 12's: another location, another background (objects beside the board)
 FIG12_LABELS = {"train": "training context", "loc-1": "new location", "bg-objects": "new background"}
@@ -63,7 +64,8 @@ ABLATIONS = {"gear-obs": "Fig. 9, observations (P-T, time-series P-T, time-serie
              "gear-roi": "Fig. 11, ROI windows (task attention, full, 300, 200, 100x160; 200 episodes)"}
 # Fig. 12 is the simulation's (Sec. 5.1.4, the gear ablations), scored by the average cumulative reward
 PAPER_FIG12 = ("The paper (simulation, the gear's ROI ablation, Fig. 12, average cumulative reward): task attention "
-               "61.19 -> 54.73 (new background), 69.23 -> 46.46 (new location); full view 61.12 -> -23.06 and 59.51 -> -14.65.")
+               "61.19 -> 54.73 (new background), 69.23 -> 46.46 (new location); full view 61.12 -> -23.06 and 59.51 "
+               "-> -14.65.")
 LEVELS = (5.0, 10.0, 15.0, 20.0)
 PAPER_ABLATIONS = {   # what the paper says of each ablation's curves (Sec. 5.1.4); it gives no numbers beside these
     "obs": "The paper (Fig. 9, gear, the final error range after 200 episodes): all three learn at 2 mm; P-T tolerates "
@@ -127,7 +129,8 @@ def load_run(d):
         cfg = read_config(d)
         ev = read_json(os.path.join(d, "eval.json")) if os.path.exists(os.path.join(d, "eval.json")) else None
         metrics = rundir.read_metrics(d)
-        m = {k: np.array(metrics[k]) for k in ("episode", "return", "success", "sr15", "e_r_mm", "ex_r_mm", "elapsed_s")}
+        m = {k: np.array(metrics[k]) for k in ("episode", "return", "success", "sr15", "e_r_mm", "ex_r_mm",
+                                               "elapsed_s")}
     except (OSError, ValueError, KeyError, TypeError) as e:
         raise ArgError(f"{d}: a damaged run directory ({cli.describe(e)})")
     return {"dir": d, "cfg": cfg, "m": m, "eval": ev}
@@ -173,7 +176,8 @@ def command_of(cfg):
         if k in ("run_dir", "threads", "device", "resume", "track"):
             continue
         if not hasattr(default, k) or v != getattr(default, k) or k == "task":        # (a retired flag: its tag's)
-            flags.append(f"--{k.replace('_', '-')}" + ("" if v is True else f" {v:g}" if isinstance(v, float) else f" {v}"))
+            value = "" if v is True else f" {v:g}" if isinstance(v, float) else f" {v}"
+            flags.append(f"--{k.replace('_', '-')}" + value)
     return " ".join(flags)
 
 
@@ -205,7 +209,7 @@ def ablation_table(runs, task, fam, log=print):
             by_level = {x["error_mm"]: x["success_rate"] for x in r["eval"]["rows"]}
             at.append([by_level.get(x, np.nan) for x in LEVELS])
         mean = lambda v, f="{:.2f}": f.format(v[0]) if len(v) == 1 else \
-            f"{f.format(np.mean(v))} +- {f.format(np.std(v))} ({' / '.join(f.format(x) for x in v)})"   # no spread of one seed
+            f"{f.format(np.mean(v))} +- {f.format(np.std(v))} ({' / '.join(f.format(x) for x in v)})"   # (one seed)
         md.append(f"| {label} | {len(seeds)} | {' / '.join(first)} | {np.mean(most):.1f} / {np.mean(last):.1f} | "
                   f"{mean(trained)} | {mean(final)} | {f'{np.mean(ct):.2f}' if ct else '-'} | "
                   + " / ".join(f"{v:.2f}" for v in np.nanmean(at, axis=0)) + " |")
@@ -251,8 +255,8 @@ def families(cfg):
         return {"methods": name}
     if "(" in name:
         return {}
-    ours_but = lambda **kw: all(cfg[k] == v for k, v in {"obs": "ts-ptv", "curriculum": "adaptive", "roi": "task",  # noqa: E731
-                                                         "error_mm": 20.0, "vanilla": False, **kw}.items())
+    ours = {"obs": "ts-ptv", "curriculum": "adaptive", "roi": "task", "error_mm": 20.0, "vanilla": False}
+    ours_but = lambda **kw: all(cfg[k] == v for k, v in {**ours, **kw}.items())   # noqa: E731
     fam = {}
     if name in ("ours", "vanilla", "visual", "keypoint"):
         fam["methods"] = name
@@ -330,7 +334,7 @@ def record_episode(run, error_mm=10.0, seed=0):
 def match_runs(patterns):
     """The run directories (config.json + metrics.csv) that comma-separated glob patterns match."""
     dirs = sorted({d for p in patterns.split(",") for d in glob.glob(p.strip())
-                   if os.path.exists(os.path.join(d, "config.json")) and os.path.exists(os.path.join(d, "metrics.csv"))})
+                   if all(os.path.exists(os.path.join(d, f)) for f in ("config.json", "metrics.csv"))})
     if not dirs:
         raise ArgError(f"{patterns!r}: no run directory (config.json + metrics.csv) matches")
     return dirs
@@ -407,7 +411,8 @@ def world_of(runs, patterns):
 def read_notes(path):
     """docs/results-notes.md, the hand-written reading of the numbers, as {section title: text}: the text before
     the first '## ' line under '', each section under its title. The report puts a section beside the table it
-    is titled after ('Table 1', 'Table 2', 'The ablations', 'Fig. 9, gear', 'Fig. 12, peg', ...) and the rest at the end."""
+    is titled after ('Table 1', 'Table 2', 'The ablations', 'Fig. 9, gear', 'Fig. 12, peg', ...) and the rest at the
+    end."""
     if not os.path.exists(path):
         return {}
     with open(path) as f:
@@ -437,7 +442,8 @@ def write_report(patterns, out_dir="docs", log=print):
           "Every number below was measured by running this code on a 2-core CPU machine; "
           "the paper's numbers stand beside ours. How the world and the method came to be as they are, "
           "and what each change did to the results, is told in [HISTORY.md](HISTORY.md).", "", "## The runs", "",
-          "| run | command | method | episodes | minutes (threads) | final E_r (mm) | max E_r (mm) | eval SR 5/10/15/20 mm |",
+          "| run | command | method | episodes | minutes (threads) | final E_r (mm) | max E_r (mm) | eval SR "
+          "5/10/15/20 mm |",
           "|---|---|---|---|---|---|---|---|"]
     for r in runs:
         ev = r["eval"]
@@ -445,13 +451,15 @@ def write_report(patterns, out_dir="docs", log=print):
         if ev and tuple(row["error_mm"] for row in ev["rows"]) != LEVELS:   # e.g. a 30 mm run's 10/20/30
             srs += " (at " + "/".join(f"{row['error_mm']:g}" for row in ev["rows"]) + " mm)"
         md.append(f"| `{r['dir']}` | `{command_of(r['cfg'])}` | {method_of(r['cfg'])} | "
-                  f"{len(r['m']['episode'])} | {r['m']['elapsed_s'][-1] / 60:.1f} ({r['cfg'].get('threads') or 'all'}) | "
+                  f"{len(r['m']['episode'])} | {r['m']['elapsed_s'][-1] / 60:.1f} "
+                  f"({r['cfg'].get('threads') or 'all'}) | "
                   f"{r['m']['e_r_mm'][-1]:.1f} | {r['m']['e_r_mm'].max():.1f} | {srs} |")
     # -- Table 1: peg at 20 mm, every learned row after the paper's budget
     md += ["", "## Table 1: peg-in-hole at 20 mm error", "",
-           f"Every learned row trained {FAMILIES['methods'][3]} episodes (`--train-episodes {FAMILIES['methods'][3]} --stop-held 0`), as "
-           "the paper's; 20 trials a seed on evaluation seeds never used in training. Over seeds: SR mean +- std of the "
-           "seeds' success rates, CT mean +- std of their mean completion times (s), force and reward the means of "
+           f"Every learned row trained {FAMILIES['methods'][3]} episodes (`--train-episodes {FAMILIES['methods'][3]} "
+           "--stop-held 0`), as "
+           "the paper's; 20 trials a seed on evaluation seeds never used in training. Over seeds: SR mean +- std of "
+           "the seeds' success rates, CT mean +- std of their mean completion times (s), force and reward the means of "
            "theirs (peak contact force per axis, N). A run trained otherwise is not in this table.", "",
            "| method | seeds | SR | CT (s) | peak contact force x / y / z (N) | cumulative reward | "
            "paper: SR, CT, force x/y/z |", "|---|---|---|---|---|---|---|"]
@@ -461,7 +469,8 @@ def write_report(patterns, out_dir="docs", log=print):
     if ts_row is None and world == sim.WORLD:
         log("evaluating the two-step baseline (peg, 20 mm, 20 episodes)")
         with sim.AssemblyEnv("peg", e_r=0.02) as env:
-            ts_row = evaluate.evaluate(env, baselines.make("two-step", env), 20, evaluate.EVAL_SEED, log=lambda *_: None)
+            ts_row = evaluate.evaluate(env, baselines.make("two-step", env), 20, evaluate.EVAL_SEED,
+                                       log=lambda *_: None)
         write_world_cache(path, world, ts_row)
     table1 = [("two-step", [ts_row] if ts_row else [], "-")]
     for name in ("vanilla", "visual", VISUAL_PAPER_CRITICS, "keypoint", "ours"):
@@ -476,18 +485,20 @@ def write_report(patterns, out_dir="docs", log=print):
             continue
         over = lambda k: np.array([x[k][0] for x in rows if x[k]])     # noqa: E731  (each seed's mean)
         sr, ct = np.array([x["success_rate"] for x in rows]), over("completion_time_s")
-        pm = lambda a: "-" if not len(a) else f"{a.mean():.2f}" + (f" +- {a.std():.2f}" if len(rows) > 1 else "")  # noqa: E731
+        pm = lambda a: "-" if not len(a) else f"{a.mean():.2f}" + (  # noqa: E731
+            f" +- {a.std():.2f}" if len(rows) > 1 else "")
         ct_cell = cell(rows[0], "completion_time_s") if len(rows) == 1 else pm(ct)
-        fx = " / ".join(f"{over(k).mean():.2f}" for k in ("contact_force_x_N", "contact_force_y_N", "contact_force_z_N"))
+        fx = " / ".join(f"{over(f'contact_force_{a}_N').mean():.2f}" for a in "xyz")
         md.append(f"| {TABLE1_ROWS.get(name, name)} | {seeds} | {pm(sr)} | {ct_cell} | {fx} | "
                   f"{over('cumulative_reward').mean():.1f} | {PAPER_TABLE1[name]} |")
     md += note(notes, "Table 1")
     # -- Table 2: ours, trained as the quickstart trains, in the training context and two unseen ones
     md += ["", "## Table 2: our policy in the training context and two unseen ones", "",
            "Ours trained as the quickstart trains (stopped when learned), tested at another two places of the board, "
-           "as the paper's two unseen contexts are (its Table 2, on the real robot): SR / CT (s) at each error, mean over "
-           "seeds, 20 trials a seed. Their runs and every other context: [CONTEXTS.md](CONTEXTS.md).", "",
-           "| task | context | seeds | 5 mm | 10 mm | 15 mm | 20 mm | paper SR (real robot) |", "|---|---|---|---|---|---|---|---|"]
+           "as the paper's two unseen contexts are (its Table 2, on the real robot): SR / CT (s) at each error, mean "
+           "over seeds, 20 trials a seed. Their runs and every other context: [CONTEXTS.md](CONTEXTS.md).", "",
+           "| task | context | seeds | 5 mm | 10 mm | 15 mm | 20 mm | paper SR (real robot) |",
+           "|---|---|---|---|---|---|---|---|"]
     for task in ("peg", "gear"):
         ours = [r for r in runs if r["cfg"]["task"] == task and method_of(r["cfg"]) == "ours" and r["eval"]
                 and not fam_of(r)]
@@ -496,8 +507,9 @@ def write_report(patterns, out_dir="docs", log=print):
             continue
         for ctx in ("train",) + UNSEEN:
             per_seed = [eval_cached(r, ctx, log=log) for r in ours]             # [seed][level]
-            cells = [f"{np.mean([rows[i]['success_rate'] for rows in per_seed]):.2f} / "
-                     f"{np.mean([rows[i]['completion_time_s'][0] for rows in per_seed if rows[i]['completion_time_s']]):.1f}"
+            cts = [[rows[i]["completion_time_s"][0] for rows in per_seed if rows[i]["completion_time_s"]]
+                  for i in range(len(LEVELS))]
+            cells = [f"{np.mean([rows[i]['success_rate'] for rows in per_seed]):.2f} / {np.mean(cts[i]):.1f}"
                      for i in range(len(LEVELS))]
             md.append(f"| {task} | {TABLE2_LABELS[ctx]} | {len(ours)} | {' | '.join(cells)} | "
                       f"{PAPER_TABLE2.get((task, ctx), '-')} |")
@@ -509,7 +521,8 @@ def write_report(patterns, out_dir="docs", log=print):
         planned = [sweep.config_of([*row, "--seed", str(s)]) for row in sweep.EXPERIMENTS[exp] for s in sweep.SEEDS]
         have = [r for r in runs if r["eval"] and any(is_planned(r, p) for p in planned)]
         md.append(f"- {what}: {len(have)} of {len(planned)} runs finished in this world" +
-                  ("" if len(have) == len(planned) else f"; the rest: `python tools/sweep.py {exp} --seeds {','.join(map(str, sweep.SEEDS))}`, then "
+                  ("" if len(have) == len(planned) else f"; the rest: `python tools/sweep.py {exp} --seeds "
+                                                        f"{','.join(map(str, sweep.SEEDS))}`, then "
                    f"`python tools/report.py --archive \"runs/{exp}/*\" --to results/{exp}`") + ".")
     md += note(notes, "The ablations")
     # -- the ablations in numbers (the paper's Figs. 9-11 are curves): a row a setting, over its seeds
@@ -518,7 +531,8 @@ def write_report(patterns, out_dir="docs", log=print):
             table = ablation_table(runs, task, fam, log=log)
             if table:
                 title = FAMILIES[fam][0]
-                md += ["", f"## {title[0].upper() + title[1:]}, {task} (the paper's {FAMILIES[fam][2]}), in numbers", ""]
+                md += ["", f"## {title[0].upper() + title[1:]}, {task} (the paper's {FAMILIES[fam][2]}), in numbers",
+                       ""]
                 md += table + ["", PAPER_ABLATIONS[fam]] + note(notes, f"{FAMILIES[fam][2]}, {task}")
     # -- learning curves: one figure per comparison of the paper and task
     figs = []
@@ -545,28 +559,32 @@ def write_report(patterns, out_dir="docs", log=print):
         for roi, label in VIEWS.items():
             seeds = [r for r in runs if r["cfg"]["task"] == task and r["eval"] and not fam_of(r)
                      and families(r["cfg"]).get("roi") and r["cfg"]["roi"] == roi]
-            if seeds:                      # each seed's mean cumulative reward over the levels and trials; bars over seeds
+            # each seed's mean cumulative reward over the levels and trials; bars over seeds
+            if seeds:
                 cr = {ctx: [np.mean([x["cumulative_reward"][0] for x in eval_cached(r, ctx, log=log)]) for r in seeds]
                       for ctx in ("train",) + FIG12_CONTEXTS}
                 bars[f"{label} ({len(seeds)} seeds)"] = {FIG12_LABELS[c]: [float(np.mean(v)), float(np.std(v))]
                                                          for c, v in cr.items()}
         if len(bars) == 2:
             name = f"fig-{task}-contexts.png"
-            figures.plot_context_bars(bars, os.path.join(out_dir, name), f"{task}: the training context and two unseen ones")
+            figures.plot_context_bars(bars, os.path.join(out_dir, name), f"{task}: the training context and two "
+                                                                         "unseen ones")
             figs.append((name, f"{task}: mean cumulative reward per episode over 5/10/15/20 mm (20 trials each) in the "
                                "training context, a new location and a new background, task attention against the full "
                                "view (the paper's Fig. 12; bars: spread over seeds)"))
-            figures.plot_views(task, ("task", "full"), ("train",) + FIG12_CONTEXTS, os.path.join(out_dir, f"fig-{task}-views.png"))
+            figures.plot_views(task, ("task", "full"), ("train",) + FIG12_CONTEXTS,
+                               os.path.join(out_dir, f"fig-{task}-views.png"))
             figs.append((f"fig-{task}-views.png", f"{task}: what the policy sees at the start of an episode in each "
                                                   "context, through the task-attention ROI and the full view"))
             labels = list(FIG12_LABELS.values())
             md += ["", f"## Context generalization, {task} (the paper's Fig. 12)", "",
-                   "Task attention trained as the quickstart trains (stopped when learned), the full view as long as its "
-                   "twin of the same seed, or stopped when learned; mean cumulative reward per episode over "
+                   "Task attention trained as the quickstart trains (stopped when learned), the full view as long as "
+                   "its twin of the same seed, or stopped when learned; mean cumulative reward per episode over "
                    "5/10/15/20 mm, 20 trials each, mean +- std over seeds. New location: `" + FIG12_CONTEXTS[0] +
                    "`, new background: `" + FIG12_CONTEXTS[1] + "` (objects beside the board).", "",
                    "| ROI | " + " | ".join(labels) + " |", "|---" * (1 + len(labels)) + "|"]
-            md += [f"| {roi} | " + " | ".join(f"{v[c][0]:.1f} +- {v[c][1]:.1f}" for c in labels) + " |" for roi, v in bars.items()]
+            md += [f"| {roi} | " + " | ".join(f"{v[c][0]:.1f} +- {v[c][1]:.1f}" for c in labels) + " |"
+                   for roi, v in bars.items()]
             md += ["", PAPER_FIG12] + note(notes, f"Fig. 12, {task}")
     ours_peg = [r for r in runs if r["cfg"]["task"] == "peg" and method_of(r["cfg"]) == "ours" and r["eval"]]
     ours_peg = [r for r in ours_peg if not fam_of(r)] or ours_peg     # the quickstart's (stopped when learned) first
@@ -597,8 +615,10 @@ FAMILY_WHAT = {"place": "the board 12-32 cm from training's place, turned up to 
                "colour": "table and board of any hue, saturation up to 0.6, value 0.12-0.9 (table), 0.25-0.95 (board)",
                "parts": "1-4 small parts (nut, screw, washer, block, tie end) on the board beyond the tool's reach, "
                         "some inside the task ROI at large errors",
-               "objects": "1-4 workbench objects (fixtures, clamps, blocks) 1-4 cm across and 0.5-3 cm tall on the board, "
-                          "3-7 cm from the axis beyond the tool's reach, some in the task ROI, some hiding part of the board",
+               "objects": "1-4 workbench objects (fixtures, clamps, blocks) 1-4 cm across and 0.5-3 cm tall on the "
+                          "board, "
+                          "3-7 cm from the axis beyond the tool's reach, some in the task ROI, some hiding part of "
+                          "the board",
                "touch": "the part's sliding friction 0.10-0.70 (oiled to dry steel), clearance 0.05-0.3 mm, the board "
                         "tilted up to 1 deg",
                "mixed": "the five seen families together (place, light, colour, parts, objects)"}
@@ -698,13 +718,16 @@ def family_section(runs, episodes, jobs, log, readme=None):
             x["success_rate"] for x in r["eval"]["rows"] if x["error_mm"] == FAMILY_MM)
     for (d, ctx, _, _), rows in zip(jobs_list, evaluate_jobs(jobs_list, jobs)):
         r = next(r for r in runs if r["dir"] == d)
-        families[(r["cfg"]["task"], view_of(r["cfg"]))].setdefault(contexts.held_out_family(ctx), []).append(rows[0]["success_rate"])
-    md = [f"Each family (`contexts.FAMILIES`) draws a scene from a seed; each of the {episodes} trials of a run meets a "
-          "scene of its own, from seeds that training never draws (`--context FAMILY:test`). Success rate at "
+        by_family = families[(r["cfg"]["task"], view_of(r["cfg"]))]
+        by_family.setdefault(contexts.held_out_family(ctx), []).append(rows[0]["success_rate"])
+    md = [f"Each family (`contexts.FAMILIES`) draws a scene from a seed; each of the {episodes} trials of a run meets "
+          "a scene of its own, from seeds that training never draws (`--context FAMILY:test`). Success rate at "
           f"{FAMILY_MM:g} mm, mean over seeds (min-max); train: the run's eval.json (the same evaluation seeds).", "",
           "| task | view | seeds | train | " + " | ".join(sim.FAMILIES) + " |", "|---" * (4 + len(sim.FAMILIES)) + "|"]
-    cell = lambda x: f"{np.mean(x):.2f} ({min(x):.2f}-{max(x):.2f})" if len(x) > 1 else f"{x[0]:.2f}" if x else "-"  # noqa: E731
-    for (task, view), by_family in sorted(families.items(), key=lambda kv: (kv[0][0], not kv[0][1].startswith(VIEWS["task"]), kv[0][1])):
+    cell = lambda x: (f"{np.mean(x):.2f} ({min(x):.2f}-{max(x):.2f})" if len(x) > 1  # noqa: E731
+                      else f"{x[0]:.2f}" if x else "-")
+    order = lambda kv: (kv[0][0], not kv[0][1].startswith(VIEWS["task"]), kv[0][1])   # noqa: E731
+    for (task, view), by_family in sorted(families.items(), key=order):
         md.append(f"| {task} | {view} | {len(by_family[sim.FAMILIES[0]])} | {cell(by_family.get('train', []))} | "
                   + " | ".join(cell(by_family.get(f, [])) for f in sim.FAMILIES) + " |")
     if readme:
@@ -769,7 +792,8 @@ def write_contexts(patterns, out_dir, levels=LEVELS, episodes=20, jobs=1, log=pr
     for r in runs:
         trained.setdefault((r["cfg"]["task"], view_of(r["cfg"])), []).append(training_of(r))
     md = ["# Context generalization: trained in `train`, tested in every context", "",
-          f"Made by `python tools/report.py --contexts \"{patterns}\"`. Every context is defined in `contexts.CONTEXTS` "
+          f"Made by `python tools/report.py --contexts \"{patterns}\"`. Every context is defined in "
+          "`contexts.CONTEXTS` "
           f"(world {sim.WORLD}); the figures below show what each looks like. Each cell: success rate, mean over "
           f"seeds (min-max), {episodes} trials per seed at each error range on held-out evaluation seeds; CR: the mean "
           "cumulative reward over the ranges. Goal (task attention): SR >= 0.9 at 15 mm and within 0.1 of training's "
@@ -778,7 +802,8 @@ def write_contexts(patterns, out_dir, levels=LEVELS, episodes=20, jobs=1, log=pr
           "| task | view | context | seeds | " + " | ".join(f"{mm:g} mm" for mm in levels) + " | CR | goal |",
           "|---" * (6 + len(levels)) + "|"]
     bars = {}
-    order = lambda k: (k[0], not k[1].startswith(VIEWS["task"]), k[1], list(contexts.CONTEXTS).index(k[2]))  # noqa: E731
+    order = lambda k: (k[0], not k[1].startswith(VIEWS["task"]), k[1],  # noqa: E731
+                       list(contexts.CONTEXTS).index(k[2]))
     for task, view, ctx in sorted(table, key=order):          # task attention first, the contexts as defined
         seeds = table[(task, view, ctx)]
         sr = np.array([[x["success_rate"] for x in rows] for rows in seeds])          # (seeds, levels)
@@ -788,7 +813,8 @@ def write_contexts(patterns, out_dir, levels=LEVELS, episodes=20, jobs=1, log=pr
         if view.startswith(VIEWS["task"]) and goal_applies(ctx) and 15.0 in levels and 20.0 in levels:
             train = np.array([[x["success_rate"] for x in rows] for rows in table[(task, view, "train")]])
             i15, i20 = list(levels).index(15.0), list(levels).index(20.0)
-            met = lambda a, t: (a[..., i15] >= GOAL_SR15) & (t[..., i20] - a[..., i20] <= GOAL_DROP20 + 1e-9)  # noqa: E731
+            met = lambda a, t: ((a[..., i15] >= GOAL_SR15)  # noqa: E731
+                                & (t[..., i20] - a[..., i20] <= GOAL_DROP20 + 1e-9))
             goal = ("met" if met(sr.mean(0), train.mean(0)) else "**missed**") + \
                 (f" ({int(met(sr, train).sum())} of {len(sr)} seeds)" if len(sr) > 1 else "")    # seed by seed
         cells = [f"{m:.2f} ({lo:.2f}-{hi:.2f})" if len(sr) > 1 else f"{m:.2f}"
@@ -796,8 +822,9 @@ def write_contexts(patterns, out_dir, levels=LEVELS, episodes=20, jobs=1, log=pr
         md.append(f"| {task} | {view} | {ctx} | {len(seeds)} | {' | '.join(cells)} | {cr.mean():.1f} | {goal} |")
     md += ["", "## Families of scenes, held out", ""] + family_section(runs, episodes, jobs, log, readme)
     if len(named) < len(runs):
-        md += ["", "A run trained with `--randomize` appears in the families alone: its training scenes were drawn from "
-               "the families, so the named backgrounds are of kinds it has seen; the families' held-out seeds are its test."]
+        md += ["", "A run trained with `--randomize` appears in the families alone: its training scenes were drawn "
+                   "from the families, so the named backgrounds are of kinds it has seen; the families' held-out "
+                   "seeds are its test."]
     md += ["", "Training (each run stops when learned, at most its --train-episodes; one trained on since, with "
            "`--resume DIR --train-episodes N --stop-held 0`, says where it had first finished):", ""]
     md += [f"- {task}, {view}: {', '.join(v)}" for (task, view), v in sorted(trained.items())]
@@ -805,7 +832,8 @@ def write_contexts(patterns, out_dir, levels=LEVELS, episodes=20, jobs=1, log=pr
     md += ["", PAPER_FIG12, ""]
     for task, by_view in bars.items():
         name = f"ctx-{task}-bars.png"
-        figures.plot_context_bars(by_view, os.path.join(out_dir, name), f"{task}: trained in 'train', tested in each context")
+        figures.plot_context_bars(by_view, os.path.join(out_dir, name), f"{task}: trained in 'train', tested in each "
+                                                                        "context")
         md += [f"![{task}: Fig. 12]({name})", "", f"*{task}: mean cumulative reward per context (bars: spread over "
                "seeds), task attention against the full view (the paper's Fig. 12)*", ""]
     for task in sorted({t for t, _, _ in table}):
@@ -855,11 +883,12 @@ def write_compare(patterns, out_dir, name, log=print):
           "Q - MC and the probe: `tools/critics.py`'s diagnostics on held-out episodes at the final range (its "
           "docstring says how; -: not made, Q's needs the run's checkpoint): Q's mean bias against the soft "
           "Monte-Carlo return and their correlation; the R^2 with which a linear probe of the critics' features "
-          "(privileged runs: the actor's) predicts x and y of X - X_g, and in brackets the same encoder's untrained.", "",
+          "(privileged runs: the actor's) predicts x and y of X - X_g, and in brackets the same encoder's "
+          "untrained.", "",
           "Critics: what they read and learn from, beside the actor's observation: nothing (the paper's), what the "
           "agent knows besides it (the time, E_r and Ex_r, as `--critic multimodal` reads them), X - X_g as a label "
-          "(`--aux-offset`), or X - X_g as an input (privileged). Settings: the flags that differ from today's defaults; "
-          f"those of the critics study (issues 31 and 50) are on git tag {command.STUDY_TAG}.", "",
+          "(`--aux-offset`), or X - X_g as an input (privileged). Settings: the flags that differ from today's "
+          f"defaults; those of the critics study (issues 31 and 50) are on git tag {command.STUDY_TAG}.", "",
           "| settings | critics | seed | episodes | E_r last / max (mm) | first at final | eval SR " +
           " / ".join(f"{mm:g}" for mm in LEVELS) + " mm | minutes | Q - MC (corr) | probe R^2 x / y |",
           "|---" * 10 + "|"]
@@ -872,7 +901,8 @@ def write_compare(patterns, out_dir, name, log=print):
         ev = r["eval"]
         sr = " / ".join(f"{x['success_rate']:.2f}" for x in ev["rows"]) if ev else "unfinished"
         minutes = ev["train_minutes"] if ev else m["elapsed_s"][-1] / 60
-        md.append(f"| {setting(cfg)} | {critics_kind(cfg)} | {cfg['seed']} | {len(m['episode'])} | {m['e_r_mm'][-1]:.1f} / "
+        md.append(f"| {setting(cfg)} | {critics_kind(cfg)} | {cfg['seed']} | {len(m['episode'])} | "
+                  f"{m['e_r_mm'][-1]:.1f} / "
                   f"{m['e_r_mm'].max():.1f} | {int(m['episode'][at_final[0]]) if len(at_final) else '-'} | {sr} | "
                   f"{minutes:.1f} | {critics_cells(r['dir'])} |")
         groups.setdefault(setting(cfg), []).append(r)
@@ -886,7 +916,8 @@ def write_compare(patterns, out_dir, name, log=print):
 
 def main(argv=None):
     ap = cli.Parser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("runs", nargs="?", help=f"comma-separated glob patterns of run directories (default: {REPORT_RUNS}; "
+    ap.add_argument("runs", nargs="?", help="comma-separated glob patterns of run directories (default: "
+                                            f"{REPORT_RUNS}; "
                     f"with --contexts or --families, {CONTEXT_RUNS})")
     ap.add_argument("--archive", action="store_true", help="copy the finished runs' small files to --to instead")
     ap.add_argument("--to", default=RESULTS_DIR, help=f"where --archive copies to (default: {RESULTS_DIR})")
@@ -898,7 +929,8 @@ def main(argv=None):
     ap.add_argument("--compare", default="", metavar="NAME", help="a table and curves of the runs by learning setting "
                     "instead, to --out/NAME.md and NAME.png")
     ap.add_argument("--jobs", type=int, default=1, help="processes for --contexts' evaluations (one torch thread each)")
-    ap.add_argument("--readme", default="", metavar="PATH", help="with --contexts or --families, also make this README's "
+    ap.add_argument("--readme", default="", metavar="PATH", help="with --contexts or --families, also make this "
+                                                                 "README's "
                     f"families table anew (under the line that starts {README_FAMILIES!r})")
     a = ap.parse_args(argv)
     if a.jobs < 1:

@@ -36,8 +36,10 @@ from cli import ArgError  # noqa: E402
 # as the paper compares them. The seeds are added to each.
 BUDGET = lambda n: ["--train-episodes", str(n), "--stop-held", "0"]   # noqa: E731
 EXPERIMENTS = {
-    "table1": [[*row, *BUDGET(200)] for row in ([], ["--vanilla"], ["--obs", "v"], ["--obs", "ts-ptk"])],  # peg, 200 ep.
-    "gear-obs": [["--task", "gear", "--curriculum", "ex10", "--obs", o, *BUDGET(200)] for o in ("pt", "ts-pt", "ts-ptv")],
+    # peg, 200 ep.
+    "table1": [[*row, *BUDGET(200)] for row in ([], ["--vanilla"], ["--obs", "v"], ["--obs", "ts-ptk"])],
+    "gear-obs": [["--task", "gear", "--curriculum", "ex10", "--obs", o, *BUDGET(200)]
+                 for o in ("pt", "ts-pt", "ts-ptv")],
     "gear-curriculum": [["--task", "gear", "--curriculum", c, "--error-mm", mm, *BUDGET(300)]       # Fig. 10
                         for c, mms in (("adaptive", ("10", "20", "30")), ("none", ("10", "20", "30")),
                                        ("g2-c30", ("30",)), ("g2-c10", ("30",)), ("g2-c2", ("30",))) for mm in mms],
@@ -100,7 +102,8 @@ def job_of(run_dir, argv, cfg):
     differ = [k for k, v in vars(cfg).items()
               if k not in (*command.RESUME_MAY_SET, "run_dir", "device") and getattr(old, k) != v]
     if differ:
-        raise ArgError(f"{run_dir} holds another run (its {', '.join(differ)} differ): move it away or use another --root")
+        raise ArgError(f"{run_dir} holds another run (its {', '.join(differ)} differ): move it away or use another "
+                       "--root")
     done = os.path.exists(os.path.join(run_dir, "eval.json"))
     return Job(run_dir, ["--resume", run_dir], "done" if done else "resume")
 
@@ -199,14 +202,17 @@ def run_ray(jobs, address, threads, log=lambda m: print(m, flush=True), init=Non
     except ImportError:
         raise ArgError("--ray needs Ray: pip install -e '.[ray]'")
     if not ray.is_initialized():
-        kw = init or ({"num_cpus": os.cpu_count(), "include_dashboard": False} if address == "local" else {"address": address})
+        kw = init or ({"num_cpus": os.cpu_count(), "include_dashboard": False} if address == "local"
+                      else {"address": address})
         try:
             ray.init(log_to_driver=False, **kw)
         except ConnectionError as e:
             raise ArgError(f"--ray {address}: no Ray cluster there ({cli.describe(e)})")
-    ray.cloudpickle.register_pickle_by_value(sys.modules[__name__])    # the task travels by value: no module to import there
+    # the task travels by value: no module to import there
+    ray.cloudpickle.register_pickle_by_value(sys.modules[__name__])
     task = ray.remote(num_cpus=threads, max_retries=0)(run_job)
-    pending = {task.remote(job_command(j, threads), j.run_dir, thread_env(threads), os.getcwd()): j for j in jobs}  # paths as here
+    # paths as here
+    pending = {task.remote(job_command(j, threads), j.run_dir, thread_env(threads), os.getcwd()): j for j in jobs}
     progress = Progress(len(jobs), log)
     for j in jobs:
         progress.started(j, "queued")          # Ray starts each when a node has its CPUs free
