@@ -18,7 +18,7 @@ the three force actions), the share of the ROI's pixels the objects change (by m
 and any contact between the tool and the objects. The scenes: the `objects` family's held-out ones, or
 (--scenes issue) the kind of scene issue 53's table found the peg failing in.
 """
-import contextlib
+import dataclasses
 import json
 import os
 import re
@@ -57,37 +57,53 @@ def send_away(world):
         world.bc.resetBasePositionAndOrientation(b, [0.0, 0.0, -5.0], [0.0, 0.0, 0.0, 1.0])
 
 
-@contextlib.contextmanager
-def objects_away(world):
-    """The world's objects sent away for a moment, then back."""
-    bc = world.bc
-    poses = [bc.getBasePositionAndOrientation(b) for b in world.objects]
-    send_away(world)
-    try:
-        yield
-    finally:
-        for b, (pos, q) in zip(world.objects, poses):
-            bc.resetBasePositionAndOrientation(b, pos, q)
+class Mirror:
+    """A second world, the first's context without its objects, that renders what the first's camera would see
+    were they gone: before each render it takes the first's board and arm poses (its physics never steps), so
+    that the first world's solver keeps its history and an episode seen is evaluation's to the bit."""
+
+    def __init__(self, world):
+        self.world, self.twin, self.ctx = world, None, None
+
+    def render_roi(self, roi, size):
+        w = self.world
+        if self.ctx != w.context:                   # a new scene (each episode rebuilds the first world)
+            if self.twin is not None:
+                self.twin.close()
+            self.ctx = w.context
+            self.twin = scene.World(w.task, w.base_clearance, ft_noise=w.ft_noise, image_noise=w.image_noise,
+                                    context=dataclasses.replace(w.context, objects=()))
+        t, bc = self.twin, w.bc
+        for a, b in zip(w.plate + [b for b, _ in w.parts], t.plate + [b for b, _ in t.parts]):
+            t.bc.resetBasePositionAndOrientation(b, *bc.getBasePositionAndOrientation(a))
+        for j in w.arm:
+            t.bc.resetJointState(t.robot, j, bc.getJointState(w.robot, j)[0])
+        t.noise_rng.bit_generator.state = w.noise_rng.bit_generator.state
+        img = t.render_roi(roi, size)
+        w.noise_rng.bit_generator.state = t.noise_rng.bit_generator.state
+        return img
+
+    def close(self):
+        if self.twin is not None:
+            self.twin.close()
 
 
 def twin_renders(env, blind, last):
-    """Make env's world render each ROI image twice, with and without the objects, from the same sensor noise;
-    the env gets the blind one where `blind`, and last['seen'], last['blind'] hold both. The noise stream goes on
-    as after one render. Moving the objects away and back is not free: Bullet keeps history across resetBase...
-    (scene.World), so an episode ends a little apart from plain evaluation's (3 of 4 issue scenes did, measured);
-    every condition renders twice, so that all carry the same perturbation."""
-    w, render = env.world, env.world.render_roi
+    """Make env's world render each ROI image twice, with and without the objects (the second by a Mirror), from
+    the same sensor noise; the env gets the blind one where `blind`, and last['seen'], last['blind'] hold both.
+    The noise stream goes on as after one render, and the physics as without the twin. Returns the Mirror."""
+    w, render, mirror = env.world, env.world.render_roi, Mirror(env.world)
 
     def both(roi, size=sim.IMG):
         s0 = w.noise_rng.bit_generator.state
         last["seen"] = render(roi, size)
         s1 = w.noise_rng.bit_generator.state
         w.noise_rng.bit_generator.state = s0
-        with objects_away(w):
-            last["blind"] = render(roi, size)
+        last["blind"] = mirror.render_roi(roi, size)
         w.noise_rng.bit_generator.state = s1
         return last["blind"] if blind else last["seen"]
     w.render_roi = both
+    return mirror
 
 
 def issue_scene(rng):
@@ -138,7 +154,7 @@ def study_run(run, episodes, scenes="family", log=print):
     for cond in CONDITIONS:
         with episode_env(run, pi, scenes) as env:
             last = {}
-            twin_renders(env, cond == "blind", last)      # in every condition, so that all meet the same physics
+            mirror = twin_renders(env, cond == "blind", last)
             if cond == "hand-away":
                 move_away_on_rebuild(env.world)
             for k in range(episodes):
@@ -160,6 +176,7 @@ def study_run(run, episodes, scenes="family", log=print):
                 ep.update(success=bool(term), offset=info["goal_offset"].tolist(),
                           objects=len(env.world.context.objects))
                 out[cond].append(ep)
+            mirror.close()
             log(f"{run['dir']}: {cond} SR {np.mean([e['success'] for e in out[cond]]):.2f}")
     return out
 
@@ -169,10 +186,11 @@ def first_images(run, scenes, k=SHOWN):
     pi, seed, shown = report.load_policy(run), evaluate.EVAL_SEED + run["cfg"]["seed"], []
     with episode_env(run, pi, scenes) as env:
         last = {}
-        twin_renders(env, False, last)
+        mirror = twin_renders(env, False, last)
         for ep in range(k):
             obs, _ = env.reset(seed=evaluate.episode_seed(seed, ep))
             shown.append({"seen": last["seen"], "blind": last["blind"], "saliency": report.saliency(pi, obs)})
+        mirror.close()
     return shown
 
 
@@ -210,10 +228,9 @@ def write_docs(out, docs, log=print):
           f"held-out scenes at {ERROR_MM:g} mm (evaluation's seeds) four ways: seeing the objects (seen); blind to "
           "them (the physics holds them, each image the policy gets is rendered without them, with the same sensor "
           "noise); the hand-designed part alone, which sees no image (hand); and the same with the objects moved 5 m "
-          "away, the same bodies in the solver but out of reach (hand-away). Every condition renders each image twice "
-          "(the objects moved away and back for the blind one), which perturbs Bullet's solver alike in all of them: "
-          "`seen` is evaluation's scene and seeds, not its episodes to the bit. Each cell: the mean over the runs "
-          "(seeds) with a 95 % bootstrap interval over them, then each run's."]
+          "away, the same bodies in the solver but out of reach (hand-away). The blind image is rendered by a second world "
+          "that mirrors the first's board and arm without the objects, so `seen` is evaluation's episodes to the bit. "
+          "Each cell: the mean over the runs (seeds) with a 95 % bootstrap interval over them, then each run's."]
     setting = lambda r: re.sub(r"-s\d+$", "", os.path.basename(os.path.normpath(r["dir"])))  # noqa: E731
     groups = sorted({(r["scenes"], r["task"], setting(r)) for r in results},
                     key=lambda k: (list(SCENES).index(k[0]), k[1], "imgnorm" not in k[2], k[2]))
