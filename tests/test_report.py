@@ -1,6 +1,7 @@
 """report.py's bookkeeping: which of the paper's comparisons a run joins, the command that reproduces
 it."""
 import dataclasses
+import re
 
 import numpy as np
 import pytest
@@ -90,9 +91,11 @@ def test_an_ablation_in_numbers_has_a_row_a_setting_over_its_seeds():
     assert len(table) == 2 + 2 and report.ablation_table(runs[:2], "gear", "obs") == []
     pt, ptv = table[2].split(" | "), table[3].split(" | ")
     assert pt[0] == "| P-T" and pt[1:4] == ["2", "never / never", "6.0 / 6.0"]
-    assert pt[4] == "0.50 +- 0.50 (0.00 / 1.00)" and pt[5] == "0.10 +- 0.10 (0.00 / 0.20)"
+    assert pt[4] == "0.50 [0.00, 1.00] (0.00 / 1.00)" and pt[5] == "0.10 [0.00, 0.20] (0.00 / 0.20)"   # all resamples
     assert ptv[0] == "| Time-series P-T-V" and ptv[1:4] == ["3", "81 / 81 / 81", "20.0 / 20.0"]
-    assert ptv[5] == "0.87 +- 0.12 (1.00 / 0.90 / 0.70)" and ptv[6] == "4.00"
+    mean, lo, hi = (float(x) for x in re.match(r"([\d.]+) \[([\d.]+), ([\d.]+)\] \(1.00 / 0.90 / 0.70\)$",
+                                               ptv[5]).groups())
+    assert mean == 0.87 and 0.70 <= lo < mean < hi <= 1.00 and ptv[6] == "4.00"     # within the seeds
     assert ptv[7] == "0.22 / 0.43 / 0.65 / 0.87 |"
     assert report.ablation_table(runs, "peg", "obs") == [] and report.ablation_table(runs, "gear", "roi") == []
     one = report.ablation_table(runs[1:4], "gear", "obs")[2].split(" | ")     # a setting of one seed: no spread

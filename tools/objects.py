@@ -36,7 +36,6 @@ import cli  # noqa: E402
 import command  # noqa: E402
 import contexts  # noqa: E402
 import evaluate  # noqa: E402
-import figures  # noqa: E402
 import report  # noqa: E402
 import scene  # noqa: E402
 import sim  # noqa: E402
@@ -207,11 +206,6 @@ def summary(out):
             "episodes": len(seen)}
 
 
-def ci(values):
-    mean, lo, hi = figures.bootstrap_band([[v] for v in values])
-    return f"{mean[0]:.2f} ({lo[0]:.2f}-{hi[0]:.2f})"
-
-
 SCENES = {"issue": "scenes of the kind issue 53 found the peg failing in: 2-4 blocks 2-3 cm across and 1-2 cm tall, "
                    "their centres 3-6 cm from the hole (within the tool's reach)",
           "family": "held-out scenes of the `objects` family (contexts.py)"}
@@ -248,7 +242,7 @@ def write_docs(out, docs, log=print):
                      f"episodes seeing them, {total('touched_blind')} blind and "
                      f"{total('touched_hand')} with the hand-designed part alone.", ""]
         line = lambda name, key, f="{:.2f}": md.append(  # noqa: E731
-            f"| {name} | {ci([r[key] for r in rows])} | {' / '.join(f.format(r[key]) for r in rows)} |")
+            f"| {name} | {report.ci([r[key] for r in rows])} | {' / '.join(f.format(r[key]) for r in rows)} |")
         line("SR, the policy seeing the objects", "sr_seen")
         line("SR, the same episodes, the objects out of the policy's images (blind)", "sr_blind")
         line("SR, the hand-designed part alone (zero residual; it sees no image)", "sr_hand")

@@ -208,8 +208,7 @@ def ablation_table(runs, task, fam, log=print):
                 ct.append(row["completion_time_s"][0])
             by_level = {x["error_mm"]: x["success_rate"] for x in r["eval"]["rows"]}
             at.append([by_level.get(x, np.nan) for x in LEVELS])
-        mean = lambda v, f="{:.2f}": f.format(v[0]) if len(v) == 1 else \
-            f"{f.format(np.mean(v))} +- {f.format(np.std(v))} ({' / '.join(f.format(x) for x in v)})"   # (one seed)
+        mean = lambda v, f="{:.2f}": ci(v, f) + (f" ({' / '.join(f.format(x) for x in v)})" if len(v) > 1 else "")
         md.append(f"| {label} | {len(seeds)} | {' / '.join(first)} | {np.mean(most):.1f} / {np.mean(last):.1f} | "
                   f"{mean(trained)} | {mean(final)} | {f'{np.mean(ct):.2f}' if ct else '-'} | "
                   + " / ".join(f"{v:.2f}" for v in np.nanmean(at, axis=0)) + " |")
@@ -283,6 +282,17 @@ def eval_cached(run, context, levels=LEVELS, episodes=20, log=print):
         raise ArgError(f"{run['dir']} was made in world {ev.get('world') or 'unversioned'}: this code (world "
                        f"{sim.WORLD}) would evaluate it in another world")
     return context_rows((run["dir"], context, tuple(levels), episodes), log)
+
+
+def ci(values, f="{:.2f}"):
+    """The mean of values (one a seed) with its 95 % bootstrap interval, as the paper gives its statistics (Sec.
+    5.1.5): 'mean [lo, hi]'; a single value alone; '-' for none."""
+    if len(values) == 0:
+        return "-"
+    if len(values) == 1:
+        return f.format(values[0])
+    mean, lo, hi = figures.bootstrap_band([[v] for v in values])
+    return f"{f.format(mean[0])} [{f.format(lo[0])}, {f.format(hi[0])}]"
 
 
 def cell(row, k, f="{:.2f}"):
@@ -458,9 +468,11 @@ def write_report(patterns, out_dir="docs", log=print):
     md += ["", "## Table 1: peg-in-hole at 20 mm error", "",
            f"Every learned row trained {FAMILIES['methods'][3]} episodes (`--train-episodes {FAMILIES['methods'][3]} "
            "--stop-held 0`), as "
-           "the paper's; 20 trials a seed on evaluation seeds never used in training. Over seeds: SR mean +- std of "
-           "the seeds' success rates, CT mean +- std of their mean completion times (s), force and reward the means of "
-           "theirs (peak contact force per axis, N). A run trained otherwise is not in this table.", "",
+           "the paper's; 20 trials a seed on evaluation seeds never used in training. SR and CT: the mean over seeds "
+           "and its 95 % bootstrap interval, as the paper's (Sec. 5.1.5), of the seeds' success rates and of their "
+           "mean completion times (s; over the seeds with a success, their number in brackets where fewer); force "
+           "and reward: the means of theirs (peak contact force per axis, N). The two-step baseline has no seeds: "
+           "mean +- std over its trials. A run trained otherwise is not in this table.", "",
            "| method | seeds | SR | CT (s) | peak contact force x / y / z (N) | cumulative reward | "
            "paper: SR, CT, force x/y/z |", "|---|---|---|---|---|---|---|"]
     path = os.path.join(out_dir, "two-step-peg-20mm.json")     # the two-step row, kept with its world
@@ -485,11 +497,10 @@ def write_report(patterns, out_dir="docs", log=print):
             continue
         over = lambda k: np.array([x[k][0] for x in rows if x[k]])     # noqa: E731  (each seed's mean)
         sr, ct = np.array([x["success_rate"] for x in rows]), over("completion_time_s")
-        pm = lambda a: "-" if not len(a) else f"{a.mean():.2f}" + (  # noqa: E731
-            f" +- {a.std():.2f}" if len(rows) > 1 else "")
-        ct_cell = cell(rows[0], "completion_time_s") if len(rows) == 1 else pm(ct)
+        ct_cell = cell(rows[0], "completion_time_s") if len(rows) == 1 else ci(ct) + (
+            f" ({len(ct)} seeds)" if 0 < len(ct) < len(rows) else "")
         fx = " / ".join(f"{over(f'contact_force_{a}_N').mean():.2f}" for a in "xyz")
-        md.append(f"| {TABLE1_ROWS.get(name, name)} | {seeds} | {pm(sr)} | {ct_cell} | {fx} | "
+        md.append(f"| {TABLE1_ROWS.get(name, name)} | {seeds} | {ci(sr)} | {ct_cell} | {fx} | "
                   f"{over('cumulative_reward').mean():.1f} | {PAPER_TABLE1[name]} |")
     md += note(notes, "Table 1")
     # -- Table 2: ours, trained as the quickstart trains, in the training context and two unseen ones
