@@ -254,7 +254,7 @@ def write_docs(out, docs, log=print):
         line("action shift, every step", "shift")
         for c in CONDITIONS[:3]:
             line(f"episodes in which the tool touched an object ({c})", f"touched_{c}", "{:.0f}")
-        fig = f"fig-objects-{sc}-{name}.png"
+        fig = f"objects-{sc}-{name}.png"          # (fig-*: the report's own, which it redraws)
         md += ["", f"![{task}: first images with the objects, without them, and the saliency]({fig})", "",
                f"*{task}, `{os.path.basename(os.path.normpath(mine[0]['dir']))}`: the first image of its first {SHOWN} "
                "episodes (the task ROI at the start, 80 x 80), the same without the objects, and the saliency of the "
