@@ -222,8 +222,9 @@ def write_docs(out, docs, log=print):
           f"held-out scenes at {ERROR_MM:g} mm (evaluation's seeds) four ways: seeing the objects (seen); blind to "
           "them (the physics holds them, each image the policy gets is rendered without them, with the same sensor "
           "noise); the hand-designed part alone, which sees no image (hand); and the same with the objects moved 5 m "
-          "away, the same bodies in the solver but out of reach (hand-away). The blind image is rendered by a second world "
-          "that mirrors the first's board and arm without the objects, so `seen` is evaluation's episodes to the bit. "
+          "away, the same bodies in the solver but out of reach (hand-away). The blind image is rendered by a second "
+          "world that mirrors the first's board and arm without the objects, so `seen` is evaluation's episodes to the "
+          "bit. "
           "Each cell: the mean over the runs (seeds) with a 95 % bootstrap interval over them, then each run's."]
     setting = lambda r: re.sub(r"-s\d+$", "", os.path.basename(os.path.normpath(r["dir"])))  # noqa: E731
     groups = sorted({(r["scenes"], r["task"], setting(r)) for r in results},
