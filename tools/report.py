@@ -181,6 +181,11 @@ def command_of(cfg):
     return " ".join(flags)
 
 
+ABLATION_STATS = ("Over each setting's seeds: the first episode at the final range seed by seed; E_r, the CT and "
+                  "the SR at each level their means; training success and the SR at the final range the mean with "
+                  "its 95 % bootstrap interval (Sec. 5.1.5), each seed's in brackets (20 held-out trials a seed).")
+
+
 def ablation_table(runs, task, fam, log=print):
     """One of the paper's ablations (FAMILIES' fam) in numbers, a row a setting, each cell over its seeds (seed by
     seed in brackets): the first episode whose E_r reached the run's final range, the largest E_r and the last,
@@ -543,7 +548,7 @@ def write_report(patterns, out_dir="docs", log=print):
             if table:
                 title = FAMILIES[fam][0]
                 md += ["", f"## {title[0].upper() + title[1:]}, {task} (the paper's {FAMILIES[fam][2]}), in numbers",
-                       ""]
+                       "", ABLATION_STATS, ""]
                 md += table + ["", PAPER_ABLATIONS[fam]] + note(notes, f"{FAMILIES[fam][2]}, {task}")
     # -- learning curves: one figure per comparison of the paper and task
     figs = []
