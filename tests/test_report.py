@@ -133,3 +133,12 @@ def test_the_objects_study_shows_the_policy_the_scene_without_its_objects_and_ch
     np.testing.assert_array_equal(images["twin"], images["plain"])      # what the policy sees, bit for bit
     np.testing.assert_array_equal(images["blind"], images["none"])      # the same scene, the same noise, no objects
     assert (images["plain"] != images["none"]).mean() > 0.01            # and the block is in view
+
+
+def test_a_readme_table_is_made_anew_under_its_caption_or_refused(tmp_path):
+    readme = tmp_path / "README.md"
+    readme.write_text("# x\n\nTable 1 in today's world: ...\n\n| a |\n|---|\n| 1 |\n\nrest\n")
+    report.write_readme_table(str(readme), report.README_TABLE1, ["| b |", "|---|", "| 2 |"], log=lambda *_: None)
+    assert readme.read_text() == "# x\n\nTable 1 in today's world: ...\n\n| b |\n|---|\n| 2 |\n\nrest\n"
+    with pytest.raises(report.ArgError):                  # no such caption: one line, nothing written
+        report.write_readme_table(str(readme), "Table 9", ["| c |"], log=lambda *_: None)

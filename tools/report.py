@@ -43,17 +43,17 @@ from cli import ArgError  # noqa: E402
 
 
 # The paper's numbers, next to which ours stand. Table 1: simulated peg, 20 trials after 200 episodes.
-VISUAL_PAPER_CRITICS = "visual (critic multimodal)"     # our visual row's critics are privileged (README)
+PAPER_CRITICS = " (critic multimodal)"        # a learned row with the paper's critics (ours are privileged: README)
+LEARNED = ("vanilla", "visual", "keypoint", "ours")
 PAPER_TABLE1 = {"two-step": "0.533, 19.00 +- 5.75, 13.21 / 13.22 / 9.78",
-                "vanilla": "did not learn", "visual": "did not learn", VISUAL_PAPER_CRITICS: "did not learn",
-                "keypoint": "0.96, 4.27 +- 2.97, -",
+                "vanilla": "did not learn", "visual": "did not learn", "keypoint": "0.96, 4.27 +- 2.97, -",
                 "ours": "1.00, 2.41 +- 1.93, 12.14 / 6.92 / 3.23"}
 # Table 2 (real robot), success rate at 5/10/15/20 mm: the rows that the paper's layout pins down
 PAPER_TABLE2 = {("peg", "train"): "1.00 / 1.00 / 1.00 / 0.80", ("peg", "loc-1"): "1.00 / 1.00 / 0.90 / 0.75",
                 ("gear", "train"): "1.00 / 1.00 / 0.95 / 0.70"}
 TABLE1_ROWS = {"vanilla": "vanilla RL (`--vanilla`: no base policy)", "visual": "visual RL (`--obs v`)",
-               VISUAL_PAPER_CRITICS: "visual RL, the paper's critics", "keypoint": "keypoint RL (`--obs ts-ptk`)",
-               "ours": "ours (TA-MRP + adaptive curriculum)", "two-step": "two-step (visual servo, spiral search)"}
+               "keypoint": "keypoint RL (`--obs ts-ptk`)", "ours": "ours (TA-MRP + adaptive curriculum)",
+               "two-step": "two-step (visual servo, spiral search)"}
 # our stand-ins for Table 2's 'unseen 1' and 'unseen 2': the real board at two other places
 UNSEEN = ("loc-1", "loc-2")
 TABLE2_LABELS = {"train": "training context", "loc-1": "unseen 1 (`loc-1`)", "loc-2": "unseen 2 (`loc-2`)"}
@@ -255,7 +255,7 @@ def families(cfg):
     """The paper's comparisons a run takes part in: {figure family: curve label}. Only runs with
     the default learning settings (method_of without a suffix) are compared."""
     name = method_of(cfg)
-    if name == VISUAL_PAPER_CRITICS:    # the paper's own visual baseline: its critics see what the actor sees
+    if name.endswith(PAPER_CRITICS) and name[:-len(PAPER_CRITICS)] in LEARNED:   # a row with the paper's critics
         return {"methods": name}
     if "(" in name:
         return {}
@@ -441,7 +441,12 @@ def note(notes, title):
     return ["", text] if text else []
 
 
-def write_report(patterns, out_dir="docs", log=print):
+def paper_sr_ct(paper):
+    """PAPER_TABLE1's cell without the forces: 'SR, CT', or what it says instead."""
+    return ", ".join(paper.split(", ")[:2])
+
+
+def write_report(patterns, out_dir="docs", log=print, readme=None):
     """docs/RESULTS.md and its figures from run directories (glob patterns, comma-separated), all of one world."""
     cli.check_dir_writable(out_dir, "--out")
     runs = [load_run(d) for d in match_runs(patterns)]
@@ -490,23 +495,33 @@ def write_report(patterns, out_dir="docs", log=print):
                                        log=lambda *_: None)
         write_world_cache(path, world, ts_row)
     table1 = [("two-step", [ts_row] if ts_row else [], "-")]
-    for name in ("vanilla", "visual", VISUAL_PAPER_CRITICS, "keypoint", "ours"):
+    for name in [n + critics for n in LEARNED for critics in ("", PAPER_CRITICS)]:
         done = [r for r in runs if r["cfg"]["task"] == "peg" and method_of(r["cfg"]) == name and r["eval"]
                 and fam_of(r).get("methods")]
         rows = [row for r in done for row in r["eval"]["rows"] if row["error_mm"] == 20.0]
-        if done or name != VISUAL_PAPER_CRITICS:          # the paper's critics' visual row: only where it was run
+        if done or not name.endswith(PAPER_CRITICS):      # a row with the paper's critics: only where it was run
             table1.append((name, rows, ", ".join(str(r["cfg"]["seed"]) for r in done)))
+    readme_rows = []
     for name, rows, seeds in table1:
+        base = name[:-len(PAPER_CRITICS)] if name.endswith(PAPER_CRITICS) else name
+        label = TABLE1_ROWS[base] + (", the paper's critics" if base != name else "")
+        critics = "-" if name == "two-step" else "the paper's" if base != name else "privileged"
+        paper = PAPER_TABLE1[base]
         if not rows:
-            md.append(f"| {TABLE1_ROWS.get(name, name)} | | not run in this world | | | | {PAPER_TABLE1[name]} |")
+            md.append(f"| {label} | | not run in this world | | | | {paper} |")
+            readme_rows.append(f"| {label} | {critics} | not run in this world | | {paper_sr_ct(paper)} |")
             continue
         over = lambda k: np.array([x[k][0] for x in rows if x[k]])     # noqa: E731  (each seed's mean)
         sr, ct = np.array([x["success_rate"] for x in rows]), over("completion_time_s")
         ct_cell = cell(rows[0], "completion_time_s") if len(rows) == 1 else ci(ct) + (
             f" ({len(ct)} seeds)" if 0 < len(ct) < len(rows) else "")
         fx = " / ".join(f"{over(f'contact_force_{a}_N').mean():.2f}" for a in "xyz")
-        md.append(f"| {TABLE1_ROWS.get(name, name)} | {seeds} | {ci(sr)} | {ct_cell} | {fx} | "
-                  f"{over('cumulative_reward').mean():.1f} | {PAPER_TABLE1[name]} |")
+        md.append(f"| {label} | {seeds} | {ci(sr)} | {ct_cell} | {fx} | "
+                  f"{over('cumulative_reward').mean():.1f} | {paper} |")
+        readme_rows.append(f"| {label} | {critics} | {ci(sr)} | {ct_cell} | {paper_sr_ct(paper)} |")
+    if readme:
+        write_readme_table(readme, README_TABLE1, ["| method | critics | SR | CT (s) | paper: SR, CT (s) |",
+                                                   "|---|---|---|---|---|", *readme_rows], log)
     md += note(notes, "Table 1")
     # -- Table 2: ours, trained as the quickstart trains, in the training context and two unseen ones
     md += ["", "## Table 2: our policy in the training context and two unseen ones", "",
@@ -752,19 +767,28 @@ def family_section(runs, episodes, jobs, log, readme=None):
                                                                                for f in sim.FAMILIES) + "."]
 
 
-README_FAMILIES = "Held-out scenes drawn from families"      # the README's caption of its families table
+README_FAMILIES = "Held-out scenes drawn from families"      # the README's captions of the tables the report makes
+README_TABLE1 = "Table 1 in today's world"
+
+
+def write_readme_table(path, caption, table, log):
+    """A README's table (markdown lines) made anew in place: the first table after the line that starts `caption`;
+    the rest of the file as it was."""
+    with open(path) as f:
+        lines = f.read().split("\n")
+    at = next((i for i, ln in enumerate(lines) if ln.startswith(caption)), None)
+    if at is None:
+        raise ArgError(f"{path}: no line starts {caption!r}, a table's caption")
+    start = next(i for i in range(at, len(lines)) if lines[i].startswith("|"))
+    end = next((i for i in range(start, len(lines)) if not lines[i].startswith("|")), len(lines))
+    with open(path, "w") as f:
+        f.write("\n".join(lines[:start] + table + lines[end:]))
+    log(f"wrote {path}'s table under {caption!r}")
 
 
 def write_readme_families(families, path, log):
     """The README's families table, made anew in place under its caption: task attention as trained by default and
     with the robust options (image_norm image), SR at FAMILY_MM, the mean over seeds and the worst seed's."""
-    with open(path) as f:
-        lines = f.read().split("\n")
-    at = next((i for i, ln in enumerate(lines) if ln.startswith(README_FAMILIES)), None)
-    if at is None:
-        raise ArgError(f"{path}: no line starts {README_FAMILIES!r}, the families table's caption")
-    start = next(i for i in range(at, len(lines)) if lines[i].startswith("|"))
-    end = next((i for i in range(start, len(lines)) if not lines[i].startswith("|")), len(lines))
     shown = [(k, v) for k, v in sorted(families.items()) if k[1] == VIEWS["task"] or
              (k[1].startswith(VIEWS["task"]) and "image_norm image" in k[1])]
     cell = lambda x: f"{np.mean(x):.2f} ({min(x):.2f})" if x else "-"      # noqa: E731
@@ -772,9 +796,7 @@ def write_readme_families(families, path, log):
              "|---" * (3 + len(sim.FAMILIES)) + "|"]
     table += [f"| {task}, {view} | {len(by[sim.FAMILIES[0]])} | {cell(by.get('train', []))} | "
               + " | ".join(cell(by.get(f, [])) for f in sim.FAMILIES) + " |" for (task, view), by in shown]
-    with open(path, "w") as f:
-        f.write("\n".join(lines[:start] + table + lines[end:]))
-    log(f"wrote {path}'s families table")
+    write_readme_table(path, README_FAMILIES, table, log)
 
 
 def write_families(patterns, out_dir, episodes=20, jobs=1, log=print, readme=None):
@@ -945,9 +967,9 @@ def main(argv=None):
     ap.add_argument("--compare", default="", metavar="NAME", help="a table and curves of the runs by learning setting "
                     "instead, to --out/NAME.md and NAME.png")
     ap.add_argument("--jobs", type=int, default=1, help="processes for --contexts' evaluations (one torch thread each)")
-    ap.add_argument("--readme", default="", metavar="PATH", help="with --contexts or --families, also make this "
-                                                                 "README's "
-                    f"families table anew (under the line that starts {README_FAMILIES!r})")
+    ap.add_argument("--readme", default="", metavar="PATH", help="also make this README's tables anew: Table 1 (under "
+                    f"the line that starts {README_TABLE1!r}), or with --contexts or --families the families' (under "
+                    f"{README_FAMILIES!r})")
     a = ap.parse_args(argv)
     if a.jobs < 1:
         raise ArgError(f"--jobs must be at least 1, not {a.jobs}")
@@ -964,7 +986,7 @@ def main(argv=None):
     elif a.families:
         write_families(a.runs or CONTEXT_RUNS, a.out, jobs=a.jobs, readme=a.readme)
     else:
-        write_report(a.runs or REPORT_RUNS, a.out)
+        write_report(a.runs or REPORT_RUNS, a.out, readme=a.readme)
 
 
 if __name__ == "__main__":
