@@ -20,6 +20,7 @@ import os
 import shutil
 import signal
 import sys
+import tempfile
 from dataclasses import asdict, fields
 
 if __name__ == "__main__":     # Ctrl-C while torch and pybullet load: one line and exit 130
@@ -787,6 +788,37 @@ def write_readme_table(path, caption, table, log):
     log(f"wrote {path}'s table under {caption!r}")
 
 
+def readme_table(path, caption):
+    """The markdown lines of the first table after the line of `path` that starts `caption` ([] where none)."""
+    with open(path) as f:
+        lines = f.read().split("\n")
+    at = next((i for i, ln in enumerate(lines) if ln.startswith(caption)), len(lines))
+    start = next((i for i in range(at, len(lines)) if lines[i].startswith("|")), len(lines))
+    end = next((i for i in range(start, len(lines)) if not lines[i].startswith("|")), len(lines))
+    return lines[start:end]
+
+
+def check_readme(path, log=print):
+    """The README's generated tables (Table 1, the families') against what the report makes of results/ now, in a
+    temporary folder: Failed naming each that differs (the README was typed, or results/ changed since)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        copy, docs = os.path.join(tmp, "README.md"), os.path.join(tmp, "docs")
+        shutil.copy(path, copy)
+        os.makedirs(docs)
+        cached = os.path.join(os.path.dirname(os.path.abspath(path)), "docs", "two-step-peg-20mm.json")
+        if os.path.exists(cached):                  # the two-step row, as the report keeps it with its world
+            shutil.copy(cached, docs)
+        quiet = lambda *_: None                     # noqa: E731
+        write_report(REPORT_RUNS, docs, log=quiet, readme=copy)
+        write_families(CONTEXT_RUNS, docs, log=quiet, readme=copy)
+        differ = [c for c in (README_TABLE1, README_FAMILIES) if readme_table(path, c) != readme_table(copy, c)]
+    if differ:
+        raise cli.Failed(f"{path}: the table under {' and under '.join(map(repr, differ))} is not what the report "
+                         f"makes of {RESULTS_DIR}/ now (python tools/report.py --readme {path}, and --families "
+                         f"--readme {path}, make them anew)")
+    log(f"{path}: Table 1 and the families' table are the report's")
+
+
 def write_readme_families(families, path, log):
     """The README's families table, made anew in place under its caption: task attention as trained by default and
     with the robust options (image_norm image), SR at FAMILY_MM, the mean over seeds and the worst seed's."""
@@ -967,6 +999,8 @@ def main(argv=None):
                     "scenes alone instead, to --out/FAMILIES.md")
     ap.add_argument("--compare", default="", metavar="NAME", help="a table and curves of the runs by learning setting "
                     "instead, to --out/NAME.md and NAME.png")
+    ap.add_argument("--check-readme", default="", metavar="PATH", help="check that this README's generated tables "
+                    "are what the report makes of the archived runs now, instead (exit 1 where not)")
     ap.add_argument("--jobs", type=int, default=1, help="processes for --contexts' evaluations (one torch thread each)")
     ap.add_argument("--readme", default="", metavar="PATH", help="also make this README's tables anew: Table 1 (under "
                     f"the line that starts {README_TABLE1!r}), or with --contexts or --families the families' (under "
@@ -982,6 +1016,10 @@ def main(argv=None):
         if not a.compare.replace("-", "").replace("_", "").isalnum():
             raise ArgError(f"--compare takes a file name of letters, digits, - and _, not {a.compare!r}")
         write_compare(a.runs, a.out, a.compare)
+    elif a.check_readme:
+        if not os.path.isfile(a.check_readme):
+            raise ArgError(f"--check-readme {a.check_readme!r}: no such file")
+        check_readme(a.check_readme)
     elif a.contexts:
         write_contexts(a.runs or CONTEXT_RUNS, a.out, jobs=a.jobs, readme=a.readme)
     elif a.families:
