@@ -142,3 +142,16 @@ def test_a_readme_table_is_made_anew_under_its_caption_or_refused(tmp_path):
     assert readme.read_text() == "# x\n\nTable 1 in today's world: ...\n\n| b |\n|---|\n| 2 |\n\nrest\n"
     with pytest.raises(report.ArgError):                  # no such caption: one line, nothing written
         report.write_readme_table(str(readme), "Table 9", ["| c |"], log=lambda *_: None)
+
+
+def test_the_readme_contexts_table_gives_each_background_its_mean_and_worst_seed(tmp_path):
+    import contexts
+    row = lambda sr: [{"success_rate": s, "cumulative_reward": [10.0 * s]} for s in sr]      # noqa: E731  (5..20 mm)
+    table = {("peg", "task attention", c): [row([1, 1, 1, 1]), row([1, 1, 0.9, 0.8])] for c in contexts.CONTEXTS}
+    table[("peg", "task attention", "bg-light")] = [row([1, 1, 0.5, 0.4]), row([1, 1, 0.3, 0.2])]
+    readme = tmp_path / "README.md"
+    readme.write_text(f"{report.README_CONTEXTS}:\n\n| old |\n")
+    report.write_readme_contexts(table, report.LEVELS, str(readme), log=lambda *_: None)
+    cells = readme.read_text().splitlines()[4].split(" | ")
+    assert cells[0] == "| peg, task attention" and cells[1] == "2" and cells[2] == "0.90 (0.80)"
+    assert cells[3] == "0.95-0.95 / 0.90-0.90" and cells[6] == "0.30 (0.20)"      # training, the places, bg-light

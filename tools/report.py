@@ -771,6 +771,36 @@ def family_section(runs, episodes, jobs, log, readme=None):
 
 README_FAMILIES = "Held-out scenes drawn from families"      # the README's captions of the tables the report makes
 README_TABLE1 = "Table 1 in today's world"
+README_CONTEXTS = "Trained in `train`, tested in each context"
+README_BACKGROUNDS = {"bg-objects": "objects beside", "bg-on-board": "parts on board", "bg-light": "other light",
+                      "bg-colour": "other colours"}
+
+
+def write_readme_contexts(table, levels, path, log):
+    """The README's contexts table, made anew under its caption from write_contexts' table ((task, view, context)
+    -> each seed's rows at `levels`): task attention and the full view as trained by default, SR at 20 mm in
+    training's scene, at the other places (the range of their means, at 15 and 20 mm), with each background (the
+    mean and the worst seed's), and the cumulative reward in training's scene against the places'."""
+    i15, i20 = list(levels).index(15.0), list(levels).index(20.0)
+    places = [c for c in contexts.CONTEXTS if c.startswith("loc-")]
+    sr = lambda k: np.array([[x["success_rate"] for x in rows] for rows in table[k]])   # noqa: E731  (seeds, levels)
+    cr = lambda k: np.mean([np.mean([x["cumulative_reward"][0] for x in rows]) for rows in table[k]])   # noqa: E731
+    rows = []
+    for task in ("peg", "gear"):
+        for view in (VIEWS["task"], VIEWS["full"]):
+            if (task, view, "train") not in table:
+                continue
+            at = {c: sr((task, view, c)) for c in ("train", *places, *README_BACKGROUNDS)}
+            span = lambda i: (f"{min(at[c][:, i].mean() for c in places):.2f}-"  # noqa: E731
+                              f"{max(at[c][:, i].mean() for c in places):.2f}")
+            worst = lambda c: f"{at[c][:, i20].mean():.2f} ({at[c][:, i20].min():.2f})"   # noqa: E731
+            rewards = [cr((task, view, c)) for c in places]
+            rows.append(f"| {task}, {view} | {len(at['train'])} | {worst('train')} | {span(i15)} / {span(i20)} | "
+                        + " | ".join(worst(c) for c in README_BACKGROUNDS)
+                        + f" | {cr((task, view, 'train')):.1f} -> {min(rewards):.1f}-{max(rewards):.1f} |")
+    header = ("| policy, SR: mean (worst seed) | seeds | training | 4 other places, 15 / 20 mm | "
+              + " | ".join(README_BACKGROUNDS.values()) + " | reward: training -> places |")
+    write_readme_table(path, README_CONTEXTS, [header, "|---" * (5 + len(README_BACKGROUNDS)) + "|", *rows], log)
 
 
 def write_readme_table(path, caption, table, log):
@@ -799,8 +829,8 @@ def readme_table(path, caption):
 
 
 def check_readme(path, log=print):
-    """The README's generated tables (Table 1, the families') against what the report makes of results/ now, in a
-    temporary folder: Failed naming each that differs (the README was typed, or results/ changed since)."""
+    """The README's generated tables (Table 1, the contexts', the families') against what the report makes of
+    results/ now, in a temporary folder: Failed naming each that differs (typed, or results/ changed since)."""
     with tempfile.TemporaryDirectory() as tmp:
         copy, docs = os.path.join(tmp, "README.md"), os.path.join(tmp, "docs")
         shutil.copy(path, copy)
@@ -810,13 +840,14 @@ def check_readme(path, log=print):
             shutil.copy(cached, docs)
         quiet = lambda *_: None                     # noqa: E731
         write_report(REPORT_RUNS, docs, log=quiet, readme=copy)
-        write_families(CONTEXT_RUNS, docs, log=quiet, readme=copy)
-        differ = [c for c in (README_TABLE1, README_FAMILIES) if readme_table(path, c) != readme_table(copy, c)]
+        write_contexts(CONTEXT_RUNS, docs, log=quiet, readme=copy)
+        differ = [c for c in (README_TABLE1, README_CONTEXTS, README_FAMILIES)
+                  if readme_table(path, c) != readme_table(copy, c)]
     if differ:
         raise cli.Failed(f"{path}: the table under {' and under '.join(map(repr, differ))} is not what the report "
                          f"makes of {RESULTS_DIR}/ now (python tools/report.py --readme {path}, and --families "
                          f"--readme {path}, make them anew)")
-    log(f"{path}: Table 1 and the families' table are the report's")
+    log(f"{path}: Table 1, the contexts' and the families' tables are the report's")
 
 
 def write_readme_families(families, path, log):
@@ -891,6 +922,8 @@ def write_contexts(patterns, out_dir, levels=LEVELS, episodes=20, jobs=1, log=pr
         cells = [f"{m:.2f} ({lo:.2f}-{hi:.2f})" if len(sr) > 1 else f"{m:.2f}"
                  for m, lo, hi in zip(sr.mean(0), sr.min(0), sr.max(0))]
         md.append(f"| {task} | {view} | {ctx} | {len(seeds)} | {' | '.join(cells)} | {cr.mean():.1f} | {goal} |")
+    if readme and 15.0 in levels and 20.0 in levels:
+        write_readme_contexts(table, levels, readme, log)
     md += ["", "## Families of scenes, held out", ""] + family_section(runs, episodes, jobs, log, readme)
     if len(named) < len(runs):
         md += ["", "A run trained with `--randomize` appears in the families alone: its training scenes were drawn "
