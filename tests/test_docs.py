@@ -23,3 +23,16 @@ def test_the_readme_code_map_gives_each_file_its_line_count():
     counted = {f: (int(n), lines_of(os.path.join(ROOT, f))) for f, n in rows}
     wrong = {f: said_now for f, said_now in counted.items() if said_now[0] != said_now[1]}
     assert not wrong, f"README says {{file: (lines said, lines now)}}: {wrong}"
+
+
+def test_the_readme_holds_the_places_the_report_writes_its_numbers_in():
+    """The report makes the README's result tables and quickstart sentence anew in place (report.py --readme):
+    each must be where it looks for it."""
+    import sys
+    sys.path.insert(0, os.path.join(ROOT, "tools"))
+    import report
+    path = os.path.join(ROOT, "README.md")
+    for caption in (report.README_TABLE1, report.README_CONTEXTS, report.README_FAMILIES):
+        assert len(report.readme_table(path, caption)) >= 3, caption        # a header, its rule, a row
+    with open(path) as f:
+        assert report.QUICKSTART.search(f.read())

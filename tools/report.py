@@ -17,6 +17,7 @@ import csv
 import glob
 import json
 import os
+import re
 import shutil
 import signal
 import sys
@@ -522,6 +523,7 @@ def write_report(patterns, out_dir="docs", log=print, readme=None):
                   f"{over('cumulative_reward').mean():.1f} | {paper} |")
         readme_rows.append(f"| {label} | {critics} | {ci(sr)} | {ct_cell} | {paper_sr_ct(paper)} |")
     if readme:
+        write_readme_quickstart(readme, log)
         write_readme_table(readme, README_TABLE1, ["| method | critics | SR | CT (s) | paper: SR, CT (s) |",
                                                    "|---|---|---|---|---|", *readme_rows], log)
     md += note(notes, "Table 1")
@@ -772,6 +774,30 @@ def family_section(runs, episodes, jobs, log, readme=None):
 README_FAMILIES = "Held-out scenes drawn from families"      # the README's captions of the tables the report makes
 README_TABLE1 = "Table 1 in today's world"
 README_CONTEXTS = "Trained in `train`, tested in each context"
+QUICKSTART_RUNS = f"{RESULTS_DIR}/speed/halves-s*"     # the quickstart's reference runs: its command, seeds 0-2
+QUICKSTART = re.compile(r"seeds\s+\d+-\d+\s+stopped\s+after\s.*?\sat\s+20\s+mm", re.S)   # its README sentence
+
+
+def quickstart_sentence():
+    """The README's sentence of what the quickstart's command gives, from its archived reference runs."""
+    runs = sorted((load_run(d) for d in match_runs(QUICKSTART_RUNS)), key=lambda r: r["cfg"]["seed"])
+    ev = [r["eval"] for r in runs]
+    sr = [next(x["success_rate"] for x in e["rows"] if x["error_mm"] == 20.0) for e in ev]
+    episodes, minutes = (", ".join(f"{e[k]:g}" for e in ev) for k in ("train_episodes", "train_minutes"))
+    return (f"seeds {runs[0]['cfg']['seed']}-{runs[-1]['cfg']['seed']} stopped after {episodes} episodes ({minutes} "
+            f"min of training; [results/speed](results/speed), world {ev[0]['world']}) and insert "
+            + ", ".join(f"{x:.2f}" for x in sr) + " at 20 mm")
+
+
+def write_readme_quickstart(path, log):
+    """The README's quickstart sentence (QUICKSTART) made anew from the reference runs."""
+    with open(path) as f:
+        text = f.read()
+    if not QUICKSTART.search(text):
+        raise ArgError(f"{path}: no quickstart sentence ('seeds 0-2 stopped after ... at 20 mm')")
+    with open(path, "w") as f:
+        f.write(QUICKSTART.sub(quickstart_sentence(), text, count=1))
+    log(f"wrote {path}'s quickstart sentence")
 README_BACKGROUNDS = {"bg-objects": "objects beside", "bg-on-board": "parts on board", "bg-light": "other light",
                       "bg-colour": "other colours"}
 
@@ -841,13 +867,15 @@ def check_readme(path, log=print):
         quiet = lambda *_: None                     # noqa: E731
         write_report(REPORT_RUNS, docs, log=quiet, readme=copy)
         write_contexts(CONTEXT_RUNS, docs, log=quiet, readme=copy)
-        differ = [c for c in (README_TABLE1, README_CONTEXTS, README_FAMILIES)
+        differ = [f"the table under {c!r}" for c in (README_TABLE1, README_CONTEXTS, README_FAMILIES)
                   if readme_table(path, c) != readme_table(copy, c)]
+        said = [" ".join(QUICKSTART.search(open(p).read()).group(0).split()) for p in (path, copy)]
+        differ += ["the quickstart's sentence"] if said[0] != said[1] else []
     if differ:
-        raise cli.Failed(f"{path}: the table under {' and under '.join(map(repr, differ))} is not what the report "
-                         f"makes of {RESULTS_DIR}/ now (python tools/report.py --readme {path}, and --families "
-                         f"--readme {path}, make them anew)")
-    log(f"{path}: Table 1, the contexts' and the families' tables are the report's")
+        raise cli.Failed(f"{path}: {' and '.join(differ)} {'is' if len(differ) == 1 else 'are'} not what the report "
+                         f"makes of {RESULTS_DIR}/ now (python "
+                         f"tools/report.py --readme {path}, and --contexts --readme {path}, make them anew)")
+    log(f"{path}: the quickstart's sentence, Table 1, the contexts' and the families' tables are the report's")
 
 
 def write_readme_families(families, path, log):
