@@ -120,7 +120,8 @@ def read_config(d):
     order = list(raw)
     study = command.study_options(raw)
     known = {f.name for f in fields(tacrl.Config)}
-    study.update({k: v for k, v in [(k, raw.pop(k)) for k in list(raw) if k not in known] if v})
+    unknown = {k: raw.pop(k) for k in list(raw) if k not in known}
+    study.update({k: v for k, v in unknown.items() if v})
     cfg = {**asdict(cli.from_dict(tacrl.Config, raw)), **study}
     return dict(sorted(cfg.items(), key=lambda kv: order.index(kv[0]) if kv[0] in order else len(order)))
 
@@ -829,16 +830,24 @@ def write_readme_contexts(table, levels, path, log):
     write_readme_table(path, README_CONTEXTS, [header, "|---" * (5 + len(README_BACKGROUNDS)) + "|", *rows], log)
 
 
+def table_span(lines, caption):
+    """(start, end) of the first markdown table after the line that starts `caption`; None where no line does."""
+    at = next((i for i, ln in enumerate(lines) if ln.startswith(caption)), None)
+    if at is None:
+        return None
+    start = next((i for i in range(at, len(lines)) if lines[i].startswith("|")), len(lines))
+    return start, next((i for i in range(start, len(lines)) if not lines[i].startswith("|")), len(lines))
+
+
 def write_readme_table(path, caption, table, log):
     """A README's table (markdown lines) made anew in place: the first table after the line that starts `caption`;
     the rest of the file as it was."""
     with open(path) as f:
         lines = f.read().split("\n")
-    at = next((i for i, ln in enumerate(lines) if ln.startswith(caption)), None)
-    if at is None:
+    span = table_span(lines, caption)
+    if span is None:
         raise ArgError(f"{path}: no line starts {caption!r}, a table's caption")
-    start = next(i for i in range(at, len(lines)) if lines[i].startswith("|"))
-    end = next((i for i in range(start, len(lines)) if not lines[i].startswith("|")), len(lines))
+    start, end = span
     with open(path, "w") as f:
         f.write("\n".join(lines[:start] + table + lines[end:]))
     log(f"wrote {path}'s table under {caption!r}")
@@ -848,9 +857,7 @@ def readme_table(path, caption):
     """The markdown lines of the first table after the line of `path` that starts `caption` ([] where none)."""
     with open(path) as f:
         lines = f.read().split("\n")
-    at = next((i for i, ln in enumerate(lines) if ln.startswith(caption)), len(lines))
-    start = next((i for i in range(at, len(lines)) if lines[i].startswith("|")), len(lines))
-    end = next((i for i in range(start, len(lines)) if not lines[i].startswith("|")), len(lines))
+    start, end = table_span(lines, caption) or (0, 0)
     return lines[start:end]
 
 
@@ -869,7 +876,10 @@ def check_readme(path, log=print):
         write_contexts(CONTEXT_RUNS, docs, log=quiet, readme=copy)
         differ = [f"the table under {c!r}" for c in (README_TABLE1, README_CONTEXTS, README_FAMILIES)
                   if readme_table(path, c) != readme_table(copy, c)]
-        said = [" ".join(QUICKSTART.search(open(p).read()).group(0).split()) for p in (path, copy)]
+        said = []
+        for p in (path, copy):
+            with open(p) as f:
+                said.append(" ".join(QUICKSTART.search(f.read()).group(0).split()))
         differ += ["the quickstart's sentence"] if said[0] != said[1] else []
     if differ:
         raise cli.Failed(f"{path}: {' and '.join(differ)} {'is' if len(differ) == 1 else 'are'} not what the report "
