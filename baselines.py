@@ -69,7 +69,7 @@ class TwoStep:
         for i in range(episodes):       # each episode's sensor noise seeded too: the fit is the same in every process
             obs, info = env.reset(seed=seed * 100003 + i, options={"error": rng.uniform(-1, 1, 4) * scale})
             for k in range(self.SERVO):
-                b = sim.hole_blob(obs["image"])
+                b = sim.hole_blob(obs["image"][0])
                 if b is not None:
                     feats.append(blob_features(b, k))
                     offsets.append(info["goal_offset"][:2])           # X - X_g, the truth, x and y
@@ -104,7 +104,7 @@ class TwoStep:
         z = float(obs["pose_hist"][-1, 2])               # tip depth along X^_g's z (down), m
         fz = -float(obs["wrench_hist"][-1, 2])           # upward contact force, N (tool z points down)
         if self.phase == "servo":
-            b = sim.hole_blob(obs["image"])
+            b = sim.hole_blob(obs["image"][0])
             if b is not None:
                 self.estimates.append(blob_features(b, self.k) @ self.coef - self._displacement(obs))
                 self.lateral = np.mean(self.estimates, 0) / w

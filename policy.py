@@ -2,7 +2,7 @@
 hand-written soft actor-critic (Sec. 4.3.2, Algorithm 1), torch and numpy only.
 
 Observations are dicts of arrays, as the env gives them (batched: a leading B):
-    image        (80, 80) uint8       the task-attention ROI, gray
+    image        (1, 80, 80) uint8    the task-attention ROI, gray
     pose_hist    (32, 6) float32      tip pose relative to X^_g [x y z rx ry rz], newest last
     wrench_hist  (32, 6) float32      wrist wrench [Fx Fy Fz Tx Ty Tz], newest last
 Actions are 6-D in [-1, 1] (the env maps them to F_d).
@@ -46,11 +46,11 @@ IMAGE_NORMS = ("fixed", "image")
 
 
 def pixels(img, norm="fixed"):
-    """(B, 80, 80) uint8 -> (B, 1, 80, 80) float: x / 255 - 0.5 (fixed), or (image, ours) each image minus its
+    """(B, 1, 80, 80) uint8 -> float: x / 255 - 0.5 (fixed), or (image, ours) each image minus its
     mean over its standard deviation (+ one grey level, for a flat image), so that light or paint that scales and
     shifts the grey levels leaves the input as it was: the normalisation of normalised cross-correlation, a classic
     of template matching under changing light (e.g. Lewis 1995)."""
-    x = img.unsqueeze(1).float() / 255.0
+    x = img.float() / 255.0
     if norm == "image":
         return (x - x.mean((2, 3), keepdim=True)) / (x.std((2, 3), keepdim=True) + 1 / 255)
     return x - 0.5
@@ -69,7 +69,7 @@ class ImageEncoder(nn.Module):
         with torch.no_grad():
             self.fc = nn.Linear(self.conv(torch.zeros(1, 1, img, img)).shape[1], FEAT)
 
-    def forward(self, img):                  # img: (B, 80, 80) uint8
+    def forward(self, img):                  # img: (B, 1, 80, 80) uint8
         return self.fc(self.conv(pixels(img, self.norm)))
 
 
@@ -232,12 +232,13 @@ class ReplayBuffer:
 
 
 def jitter(images, rng, s):
-    """Photometric augmentation of gray images (B, H, W) uint8: each image's brightness, then its contrast about
+    """Photometric augmentation of gray images (B, 1, H, W) uint8: each image's brightness, then its contrast about
     its mean, scaled by U(1 - s, 1 + s), as the brightness and contrast of RAD's colour jitter (Laskin et al.
     2020). Not the paper's method, which claims to need none: tacrl's --augment (README difference 17)."""
-    x = images.astype(np.float32) * rng.uniform(1 - s, 1 + s, (len(images), 1, 1)).astype(np.float32)
-    m = x.mean(axis=(1, 2), keepdims=True)
-    x = (x - m) * rng.uniform(1 - s, 1 + s, (len(images), 1, 1)).astype(np.float32) + m
+    per_image = (len(images),) + (1,) * (images.ndim - 1)
+    x = images.astype(np.float32) * rng.uniform(1 - s, 1 + s, per_image).astype(np.float32)
+    m = x.mean(axis=tuple(range(1, images.ndim)), keepdims=True)
+    x = (x - m) * rng.uniform(1 - s, 1 + s, per_image).astype(np.float32) + m
     return np.clip(np.rint(x), 0, 255).astype(np.uint8)
 
 

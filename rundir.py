@@ -202,7 +202,8 @@ class ReplayFiles:
             try:
                 # opened here: np.load leaves a damaged zip's file open, and Python warns of it
                 with open(path, "rb") as f, np.load(f, allow_pickle=False) as z:
-                    ep = {"obs": {k: z["obs_" + k] for k in buf.obs},
+                    # (reshaped: a run begun before the image had its channel axis stored (T + 1, 80, 80))
+                    ep = {"obs": {k: z["obs_" + k].reshape((-1, *buf.obs[k].shape[1:])) for k in buf.obs},
                           **{k: z[k] for k in ("act", "rew", "term")}}
                 if len(ep["act"]) != T or any(len(v) != T + 1 for v in ep["obs"].values()):
                     raise ValueError(f"{len(ep['act'])} transitions, not {T}")
@@ -340,8 +341,8 @@ class Run:
             for k in keys:
                 if np.isfinite(row[k]):                  # no losses during the warm-up
                     self.tb.add_scalar(f"{group}/{k}", row[k], row["episode"])
-        if (row["episode"] - 1) % TB_IMAGE_EVERY == 0:   # what the policy saw as the episode began, (80, 80) uint8
-            self.tb.add_image("obs/task_attention", episode["obs"]["image"][0], row["episode"], dataformats="HW")
+        if (row["episode"] - 1) % TB_IMAGE_EVERY == 0:   # what the policy saw as the episode began, (1, 80, 80)
+            self.tb.add_image("obs/task_attention", episode["obs"]["image"][0], row["episode"], dataformats="CHW")
         self.tb.flush()
 
     def close(self):

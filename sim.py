@@ -198,10 +198,10 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
     'rgb_array' (render() is the external camera's view); ft_noise, image_noise: the wrist sensor's noise and
     drift, the camera's shot noise (FT_NOISE, FT_DRIFT, E_PER_DN), on as on a real robot, off for exact tests.
 
-    obs = {'image': (80, 80) uint8, 'pose_hist': (32, 6) float32 [x y z (m) rx ry rz (rad)] of the
-    tip relative to X^_g in X^_g's frame, newest last, 'wrench_hist': (32, 6) float32 [F (N), T (N m)]
-    in the tool frame at the tip, newest last}, and with keypoint=True 'keypoint': (4,) float32, the hole
-    found in the image (hole_keypoint; keypoint RL's vision).
+    obs = {'image': (1, 80, 80) uint8, one channel first (the layout image libraries take for an image), 'pose_hist':
+    (32, 6) float32 [x y z (m) rx ry rz (rad)] of the tip relative to X^_g in X^_g's frame, newest last,
+    'wrench_hist': (32, 6) float32 [F (N), T (N m)] in the tool frame at the tip, newest last}, and with
+    keypoint=True 'keypoint': (4,) float32, the hole found in the image (hole_keypoint; keypoint RL's vision).
     action (6,) in [-1, 1] -> F_d = action * F_max/2 per axis: +-5 N, +-0.5 N m.
     """
     metadata = {"render_modes": ["rgb_array"], "render_fps": POLICY_HZ}
@@ -225,7 +225,7 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
             hist = lambda b: spaces.Box(np.tile(-b, (HIST, 1)), np.tile(b, (HIST, 1)), dtype=np.float32)  # noqa: E731
             keypoint_box = spaces.Box(np.float32([-0.5, -0.5, 0, 0]), np.float32([0.5, 0.5, 1, 1]), dtype=np.float32)
             self.observation_space = spaces.Dict({
-                "image": spaces.Box(0, 255, (IMG, IMG), np.uint8), "pose_hist": hist(POSE_BOUND),
+                "image": spaces.Box(0, 255, (1, IMG, IMG), np.uint8), "pose_hist": hist(POSE_BOUND),
                 "wrench_hist": hist(FT_RANGE), **({"keypoint": keypoint_box} if keypoint else {})})
             self.action_space = spaces.Box(-1.0, 1.0, (6,), np.float32)
         self.world = World(task, clearance, gui, ft_noise, image_noise, ctx)
@@ -326,7 +326,7 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
 
     def _obs(self):
         img = self.world.render_roi(self.roi) if self.image_on else np.zeros((IMG, IMG), np.uint8)
-        obs = {"image": img, "pose_hist": self.pose_hist.copy(), "wrench_hist": self.wrench_hist.copy()}
+        obs = {"image": img[None], "pose_hist": self.pose_hist.copy(), "wrench_hist": self.wrench_hist.copy()}
         return {**obs, "keypoint": hole_keypoint(img)} if self.keypoint else obs
 
     def _info(self, x, success):

@@ -223,7 +223,7 @@ def make_sac(cfg, device=None):
 def obs_shapes(cfg):
     """What the replay buffer keeps of an observation (what the critics read besides the actor's observation;
     keypoint RL's keypoint, not the image it was found in)."""
-    return {**({"keypoint": (4,)} if cfg.obs == "ts-ptk" else {"image": (sim.IMG, sim.IMG)}),
+    return {**({"keypoint": (4,)} if cfg.obs == "ts-ptk" else {"image": (1, sim.IMG, sim.IMG)}),
             "pose_hist": (sim.HIST, 6), "wrench_hist": (sim.HIST, 6),
             **({"state": (STATE_DIM,)} if cfg.critic == "privileged" else {"extra": (EXTRA_DIM,)})}
 

@@ -24,7 +24,7 @@ import policy  # noqa: E402
 import sim  # noqa: E402
 import tacrl  # noqa: E402
 
-SHAPES = {"image": (sim.IMG, sim.IMG), "pose_hist": (sim.HIST, 6), "wrench_hist": (sim.HIST, 6),
+SHAPES = {"image": (1, sim.IMG, sim.IMG), "pose_hist": (sim.HIST, 6), "wrench_hist": (sim.HIST, 6),
           "state": (tacrl.STATE_DIM,), "extra": (tacrl.EXTRA_DIM,)}   # what the privileged, the paper's critics read
 
 
@@ -32,7 +32,7 @@ def filled_buffer(rng, n=2000):
     buf = policy.ReplayBuffer(n, SHAPES)
     T = n // 10
     for _ in range(10):
-        buf.add_episode({"obs": {"image": rng.integers(0, 256, (T + 1, sim.IMG, sim.IMG), dtype=np.uint8),
+        buf.add_episode({"obs": {"image": rng.integers(0, 256, (T + 1, 1, sim.IMG, sim.IMG), dtype=np.uint8),
                                  "pose_hist": rng.normal(0, 0.01, (T + 1, sim.HIST, 6)).astype(np.float32),
                                  "wrench_hist": rng.normal(0, 1, (T + 1, sim.HIST, 6)).astype(np.float32),
                                  "state": rng.normal(0, 1, (T + 1, tacrl.STATE_DIM)).astype(np.float32),

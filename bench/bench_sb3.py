@@ -9,7 +9,7 @@ the same adaptive curriculum (Eq. 16) between episodes, for the same wall time.
    new run dir under bench/runs/, or a finished run of it given with --ours (its metrics.csv and
    eval.json; then only SB3 trains).
 2. SB3: SAC("MultiInputPolicy") with its defaults (batch 256, one update per env step, gamma 0.99, its
-   CNN on the image, given as 1 x 80 x 80), the replay buffer ours has (50,000: its default million
+   CNN on the image, which the env gives as 1 x 80 x 80 uint8), the replay buffer ours has (50,000: its default million
    would not fit), trained for the wall time ours took.
 Both then act deterministically at 20 mm on the same held-out seeds (tacrl.evaluate, seeds from
 EVAL_SEED + S). For each it prints the minutes until its training curve first showed SR >= 0.9 at
@@ -25,7 +25,6 @@ import sys
 import time
 
 import gymnasium as gym
-import numpy as np
 import torch
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -38,15 +37,12 @@ HELD, SR = 30, 0.9            # "SR >= 0.9 at 20 mm" on a training curve: 30 epi
 
 
 class SameTask(gym.Wrapper):
-    """The curriculum of tacrl.py between episodes (Eq. 16 on the last 15 successes), the image as a
-    1 x 80 x 80 channel so that SB3 sees an image, and a log of (seconds, E_r, success, sr15) an episode."""
+    """The curriculum of tacrl.py between episodes (Eq. 16 on the last 15 successes) and a log of (seconds, E_r,
+    success, sr15) an episode."""
 
     def __init__(self, env):
         super().__init__(env)
         self.curr = curriculum.Curriculum("adaptive", final=sim.E_R_FINAL)
-        spaces = dict(env.observation_space.spaces)
-        spaces["image"] = gym.spaces.Box(0, 255, (1, sim.IMG, sim.IMG), np.uint8)
-        self.observation_space = gym.spaces.Dict(spaces)
         self.ended, self.log, self.t0 = None, [], time.time()
 
     def reset(self, **kw):
@@ -56,18 +52,13 @@ class SameTask(gym.Wrapper):
             self.log.append((time.time() - self.t0, e_r, self.ended, self.curr.success_rate))
         self.env.unwrapped.set_ranges(*self.curr.ranges())
         self.ended = None
-        obs, info = self.env.reset(**kw)
-        return self.observation(obs), info
+        return self.env.reset(**kw)
 
     def step(self, action):
         obs, r, term, trunc, info = self.env.step(action)
         if term or trunc:
             self.ended = bool(term)
-        return self.observation(obs), r, term, trunc, info
-
-    @staticmethod
-    def observation(obs):
-        return {**obs, "image": obs["image"][None]}
+        return obs, r, term, trunc, info
 
 
 def minutes_to_criterion(episodes):
@@ -114,7 +105,7 @@ def run_sb3(seed, threads, seconds):
     episodes = env.log
     e_r, ex_r = env.curr.ranges()
     env.close()
-    act = lambda obs: model.predict(SameTask.observation(obs), deterministic=True)[0]   # noqa: E731
+    act = lambda obs: model.predict(obs, deterministic=True)[0]   # noqa: E731
     with sim.AssemblyEnv("peg", e_r=sim.E_R_FINAL, ex_r=ex_r) as eval_env:   # its controller as training ended
         row = evaluate.evaluate(eval_env, act, 20, evaluate.EVAL_SEED + seed, log=lambda *_: None)
     return {"train_minutes": seconds / 60, "episodes": len(episodes), "final_e_r_mm": 1000 * max(
@@ -143,7 +134,7 @@ def main():
               f"(20 mm held {HELD} episodes, SR over 15 >= {SR}): {crit}; SR at 20 mm (20 held-out episodes) "
               f"{r['sr20']:.2f}, CT {ct}")
     with open(os.path.join(a.out, f"sb3-vs-ours-s{a.seed}.json"), "w") as f:
-        json.dump({"ours": ours, "sb3": sb3}, f, indent=2)
+        json.dump({"world": sim.WORLD, "seed": a.seed, "ours_run": a.ours, "ours": ours, "sb3": sb3}, f, indent=2)
 
 
 if __name__ == "__main__":

@@ -13,9 +13,9 @@ import tacrl
 def test_hole_blob_finds_the_hole_and_nothing_in_a_blank_image():
     env = sim.AssemblyEnv("peg", e_r=0.02)
     obs, _ = env.reset(options={"error": np.zeros(4)})
-    u, v, r = sim.hole_blob(obs["image"])
+    u, v, r = sim.hole_blob(obs["image"][0])
     obs2, _ = env.reset(options={"error": np.array([0.005, 0, 0, 0])})
-    u2, v2, _ = sim.hole_blob(obs2["image"])
+    u2, v2, _ = sim.hole_blob(obs2["image"][0])
     env.close()
     assert abs(u - 40) < 3 and 4 < r < 20           # centred left-right, a hole-sized disc
     assert abs(v2 - v) > 3                           # 5 mm of error moves it several pixels
@@ -25,7 +25,7 @@ def test_hole_blob_finds_the_hole_and_nothing_in_a_blank_image():
 def test_keypoint_rl_sees_the_hole_as_a_keypoint_and_only_in_the_peg_env_that_asks():
     with sim.AssemblyEnv("peg", e_r=0.02, keypoint=True) as env:
         obs, _ = env.reset(seed=4)
-        u, v, r = sim.hole_blob(obs["image"])
+        u, v, r = sim.hole_blob(obs["image"][0])
         kp = obs["keypoint"]
         assert kp.dtype == np.float32 and kp[3] == 1.0 and np.allclose(kp[:3], [u / 80 - 0.5, v / 80 - 0.5, r / 80])
         assert env.observation_space["keypoint"].contains(kp)

@@ -24,6 +24,15 @@ def test_gymnasium_env_checker_passes_without_a_warning(env_id):
     env.close()
 
 
+def test_the_image_space_is_what_image_libraries_take_for_an_image():
+    # Stable-Baselines3's is_image_space and its env checker's test: a uint8 Box of 3 axes, bounds 0 and 255,
+    # channels (1, 3 or 4) on the first or last axis; then a user's CNN policy reads it with no wrapper
+    space = gym.make("tacrl/PegInsertion-v0").observation_space["image"]
+    obs, _ = gym.make("tacrl/PegInsertion-v0").reset(seed=0)
+    assert isinstance(space, gym.spaces.Box) and space.dtype == np.uint8 and space.shape == (1, sim.IMG, sim.IMG)
+    assert (space.low == 0).all() and (space.high == 255).all() and space.contains(obs["image"])
+
+
 def test_registered_env_steps_through_gymnasium_wrappers_and_renders():
     env = gym.wrappers.FlattenObservation(gym.make("tacrl/PegInsertion-v0", render_mode="rgb_array"))
     obs, info = env.reset(seed=0)

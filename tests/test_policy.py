@@ -18,7 +18,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 def fake_obs(rng, n=None, kinds=("image", "pose_hist", "wrench_hist")):
     lead = () if n is None else (n,)
-    o = {"image": rng.integers(0, 256, lead + (80, 80), dtype=np.uint8),
+    o = {"image": rng.integers(0, 256, lead + (1, 80, 80), dtype=np.uint8),
          "keypoint": rng.uniform(-0.5, 0.5, lead + (4,)).astype(np.float32),
          "pose_hist": rng.normal(0, 0.01, lead + (32, 6)).astype(np.float32),
          "wrench_hist": rng.normal(0, 1, lead + (32, 6)).astype(np.float32)}
@@ -67,7 +67,7 @@ def test_td_target_bootstraps_time_outs_only():
 
 def test_replay_keeps_uint8_images_and_pairs_o_with_o_next():
     rng = np.random.default_rng(1)
-    buf = policy.ReplayBuffer(50, {"image": (80, 80), "pose_hist": (32, 6), "wrench_hist": (32, 6)})
+    buf = policy.ReplayBuffer(50, {"image": (1, 80, 80), "pose_hist": (32, 6), "wrench_hist": (32, 6)})
     assert buf.obs["image"].dtype == np.uint8
     for ep in range(3):
         obs = fake_obs(rng, 21)
@@ -101,7 +101,7 @@ def test_checkpoint_round_trip_reproduces_actions():
     rng = np.random.default_rng(2)
     torch.manual_seed(0)
     sac = policy.SAC("ts-ptv")
-    buf = policy.ReplayBuffer(100, {"image": (80, 80), "pose_hist": (32, 6), "wrench_hist": (32, 6)})
+    buf = policy.ReplayBuffer(100, {"image": (1, 80, 80), "pose_hist": (32, 6), "wrench_hist": (32, 6)})
     buf.add_episode({"obs": fake_obs(rng, 11), "act": rng.uniform(-1, 1, (10, 6)), "rew": rng.normal(size=10),
                      "term": np.zeros(10)})
     for _ in range(3):
@@ -127,7 +127,7 @@ def test_checkpoint_round_trip_reproduces_actions():
 
 
 def small_buffer(rng, extra=False):
-    buf = policy.ReplayBuffer(50, {"image": (80, 80), "pose_hist": (32, 6), "wrench_hist": (32, 6),
+    buf = policy.ReplayBuffer(50, {"image": (1, 80, 80), "pose_hist": (32, 6), "wrench_hist": (32, 6),
                                    **({"extra": (3,)} if extra else {})})
     obs = {**fake_obs(rng, 11), "extra": rng.uniform(0, 1, (11, 3)).astype(np.float32)}
     buf.add_episode({"obs": obs, "act": rng.uniform(-1, 1, (10, 6)), "rew": rng.normal(size=10), "term": np.zeros(10)})
@@ -174,7 +174,7 @@ def one_update(sac, batch, seed=1):
 def test_an_update_in_halves_is_the_whole_batch_update_within_float_tolerance_on_one_thread_or_two(state_dim,
                                                                                                       one_thread):
     rng = np.random.default_rng(4)
-    buf = policy.ReplayBuffer(200, {"image": (80, 80), "pose_hist": (32, 6), "wrench_hist": (32, 6), "state": (7,),
+    buf = policy.ReplayBuffer(200, {"image": (1, 80, 80), "pose_hist": (32, 6), "wrench_hist": (32, 6), "state": (7,),
                                     "extra": (3,)})
     obs = {**fake_obs(rng, 101), "state": rng.normal(size=(101, 7)).astype(np.float32),
            "extra": rng.normal(size=(101, 3)).astype(np.float32)}
@@ -277,7 +277,7 @@ def test_the_liftable_modules_need_only_numpy_and_torch_and_the_core_no_plotting
 def test_an_image_standardised_by_itself_reads_the_same_under_other_light():
     # a dimmer light or darker paint that scales and shifts the grey levels (x -> a x + b): the standardised input is
     # as it was, to a tenth of its spread (rounding to uint8), and the fixed one is not
-    img = np.random.default_rng(0).integers(60, 160, (2, 80, 80)).astype(np.float64)
+    img = np.random.default_rng(0).integers(60, 160, (2, 1, 80, 80)).astype(np.float64)
     other = np.clip(np.rint(0.5 * img + 10), 0, 255)
     for norm, same in (("image", True), ("fixed", False)):
         a, b = (policy.pixels(torch.as_tensor(x.astype(np.uint8)), norm) for x in (img, other))

@@ -11,14 +11,14 @@ import rundir
 
 
 def fake_obs(rng, n):
-    return {"image": rng.integers(0, 256, (n, 80, 80), dtype=np.uint8),
+    return {"image": rng.integers(0, 256, (n, 1, 80, 80), dtype=np.uint8),
             "pose_hist": rng.normal(0, 0.01, (n, 32, 6)).astype(np.float32),
             "wrench_hist": rng.normal(0, 1, (n, 32, 6)).astype(np.float32)}
 
 
 def test_replay_files_rebuild_the_ring_exactly_and_keep_only_what_it_holds(tmp_path):
     rng = np.random.default_rng(4)
-    shapes = {"image": (80, 80), "pose_hist": (32, 6), "wrench_hist": (32, 6)}
+    shapes = {"image": (1, 80, 80), "pose_hist": (32, 6), "wrench_hist": (32, 6)}
     buf, files = policy.ReplayBuffer(25, shapes), rundir.ReplayFiles(str(tmp_path), 25, shapes)
     for n in range(1, 5):                                           # four episodes of 10: the ring holds 25
         ep = {"obs": fake_obs(rng, 11), "act": rng.uniform(-1, 1, (10, 6)), "rew": rng.normal(size=10),
@@ -43,12 +43,24 @@ def test_replay_files_rebuild_the_ring_exactly_and_keep_only_what_it_holds(tmp_p
         rundir.ReplayFiles(str(tmp_path), 25, shapes).restore(policy.ReplayBuffer(25, shapes), files.state(buf))
 
 
+def test_a_replay_file_from_before_the_image_had_its_channel_axis_restores(tmp_path):
+    rng, shapes = np.random.default_rng(5), {"image": (1, 80, 80), "pose_hist": (32, 6), "wrench_hist": (32, 6)}
+    ep = {"obs": fake_obs(rng, 11), "act": rng.uniform(-1, 1, (10, 6)), "rew": rng.normal(size=10),
+          "term": np.zeros(10)}
+    buf, files = policy.ReplayBuffer(25, shapes), rundir.ReplayFiles(str(tmp_path), 25, shapes)
+    buf.add_episode(ep)
+    files.add({**ep, "obs": {**ep["obs"], "image": ep["obs"]["image"][:, 0]}}, 1)      # stored (11, 80, 80)
+    again = policy.ReplayBuffer(25, shapes)
+    rundir.ReplayFiles(str(tmp_path), 25, shapes).restore(again, files.state(buf))
+    np.testing.assert_array_equal(again.obs["image"], buf.obs["image"])
+
+
 def test_update_seconds_leaves_the_networks_and_the_random_numbers_as_they_were():
     torch.manual_seed(0)
     sac = policy.SAC("ts-ptv")
     before = [p.clone() for p in sac.actor.parameters()]
     state = torch.get_rng_state()
-    o = {"image": np.zeros((8, 80, 80), np.uint8), "pose_hist": np.zeros((8, 32, 6), np.float32),
+    o = {"image": np.zeros((8, 1, 80, 80), np.uint8), "pose_hist": np.zeros((8, 32, 6), np.float32),
          "wrench_hist": np.zeros((8, 32, 6), np.float32)}
     assert rundir.update_seconds(sac, (o, np.zeros((8, 6), np.float32), np.zeros(8, np.float32), o,
                                        np.zeros(8, np.float32))) > 0

@@ -155,7 +155,7 @@ def test_observation_carries_no_ground_truth():
 def test_env_interface_and_seeded_errors():
     env = sim.AssemblyEnv("peg", e_r=0.02)
     obs, info = env.reset(seed=3)
-    assert obs["image"].shape == (sim.IMG, sim.IMG) and obs["image"].dtype == np.uint8
+    assert obs["image"].shape == (1, sim.IMG, sim.IMG) and obs["image"].dtype == np.uint8
     assert obs["pose_hist"].shape == (32, 6) and obs["pose_hist"].dtype == np.float32
     assert obs["wrench_hist"].shape == (32, 6) and obs["wrench_hist"].dtype == np.float32
     assert obs["image"].std() > 5                        # the camera sees something, not a flat field
@@ -234,7 +234,7 @@ def test_roi_presets(roi):
     obs, _ = env.reset(seed=0)
     u0, v0, u1, v1 = env.roi
     assert np.isclose((v1 - v0) / (u1 - u0), np.divide(*sim.ROI_PRESETS[roi]), atol=0.02)
-    assert obs["image"].shape == (sim.IMG, sim.IMG)
+    assert obs["image"].shape == (1, sim.IMG, sim.IMG)
     env.close()
 
 

@@ -453,7 +453,7 @@ def test_a_saved_policy_keeps_its_encoders_layout(tmp_path, state_dim, image_nor
     evaluate.save_policy(str(tmp_path / "p.pt"), sac, {"task": "peg", "obs": "ts-ptv"})
     pi = evaluate.TrainedPolicy(rundir.load_file(str(tmp_path / "p.pt")))
     rng = np.random.default_rng(0)
-    obs = {"image": rng.integers(0, 256, (80, 80), dtype=np.uint8), "pose_hist": rng.normal(0, 0.01, (32, 6)).astype(
+    obs = {"image": rng.integers(0, 256, (1, 80, 80), dtype=np.uint8), "pose_hist": rng.normal(0, 0.01, (32, 6)).astype(
         np.float32), "wrench_hist": rng.normal(0, 1, (32, 6)).astype(np.float32)}
     np.testing.assert_array_equal(pi(obs), sac.act(obs, deterministic=True))
     old = {**rundir.load_file(str(tmp_path / "p.pt")), "image_encoder": "spatial", "image_feat": 6}

@@ -87,7 +87,7 @@ def plot_views(task, rois, contexts, out, error=(0.015, -0.010, 0.0, 0.05)):
                 obs, _ = env.reset(seed=0, options={"error": np.array(error)})   # the same sensor noise each time
             finally:
                 env.close()
-            ax[i, j].imshow(obs["image"], cmap="gray", vmin=0, vmax=255)   # (80, 80) uint8
+            ax[i, j].imshow(obs["image"][0], cmap="gray", vmin=0, vmax=255)   # (1, 80, 80) uint8
             ax[i, j].set_xticks([])
             ax[i, j].set_yticks([])
             ax[i, j].set_title(f"{ctx}, ROI {roi}", fontsize=8)

@@ -164,7 +164,7 @@ def study_run(run, episodes, scenes="family", log=print):
                         return np.zeros(6)
                     a = pi(obs)
                     if cond == "seen":
-                        a_blind = pi({**obs, "image": last["blind"]})
+                        a_blind = pi({**obs, "image": last["blind"][None]})
                         ep["shift"].append(float(np.linalg.norm(a[:3] - a_blind[:3])))
                         ep["changed"].append(float(np.mean(np.abs(last["seen"].astype(int) - last["blind"]) > CHANGED)))
                     return a

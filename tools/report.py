@@ -314,11 +314,11 @@ def saliency(act, obs):
     of the deterministic F_d x and y with respect to the image's pixels, |dF_x/dI| + |dF_y/dI| (80, 80),
     as Simonyan et al. (2014) map a classifier's saliency. Zeros for a policy without an image."""
     if act.encoder.image is None:
-        return np.zeros(obs["image"].shape, np.float32)
+        return np.zeros(obs["image"].shape[-2:], np.float32)
     o = {k: torch.as_tensor(v[None]) for k, v in obs.items()}
     o["image"] = o["image"].float().requires_grad_(True)            # the encoder divides by 255 itself
     a = act.actor(act.encoder(o), deterministic=True, with_logp=False)[0][0]
-    grads = [torch.autograd.grad(a[i], o["image"], retain_graph=True)[0][0].abs() for i in (0, 1)]
+    grads = [torch.autograd.grad(a[i], o["image"], retain_graph=True)[0][0, 0].abs() for i in (0, 1)]
     return (grads[0] + grads[1]).numpy()
 
 
@@ -335,7 +335,7 @@ def record_episode(run, error_mm=10.0, seed=0):
             img = torch.as_tensor(obs["image"][None])
             rec["image_features"].append(act.encoder.image(img)[0].numpy() if act.encoder.image is not None
                                          else np.zeros(6))
-        rec["image"].append(obs["image"].copy())
+        rec["image"].append(obs["image"][0].copy())                       # (80, 80)
         rec["saliency"].append(saliency(act, obs))
         rec["action"].append(act(obs))
         return rec["action"][-1]
