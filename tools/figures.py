@@ -57,13 +57,14 @@ def plot_groups(groups, keys, out, title):
 
 def plot_context_bars(bars, out, title):
     """Fig. 12: mean cumulative reward (over the evaluated error ranges and trials) per context,
-    one group of bars per ROI. bars: {roi label: {context: [mean, std]}}."""
+    one group of bars per ROI. bars: {roi label: {context: [mean, lo, hi]}}, lo-hi the interval drawn."""
     contexts = list(next(iter(bars.values())))
     fig, ax = plt.subplots(figsize=(6.4, 3.6))
     w = 0.8 / len(contexts)
     for k, ctx in enumerate(contexts):
         xs = np.arange(len(bars)) + (k - (len(contexts) - 1) / 2) * w
-        ax.bar(xs, [bars[r][ctx][0] for r in bars], w, yerr=[bars[r][ctx][1] for r in bars], capsize=3, label=ctx)
+        m, lo, hi = np.array([bars[r][ctx] for r in bars]).T
+        ax.bar(xs, m, w, yerr=[m - lo, hi - m], capsize=3, label=ctx)
     ax.set_xticks(np.arange(len(bars)))
     ax.set_xticklabels(list(bars))
     ax.axhline(0, color="k", lw=0.6)

@@ -59,15 +59,18 @@ TABLE1_ROWS = {"vanilla": "vanilla RL (`--vanilla`: no base policy)", "visual": 
 # our stand-ins for Table 2's 'unseen 1' and 'unseen 2': the real board at two other places
 UNSEEN = ("loc-1", "loc-2")
 TABLE2_LABELS = {"train": "training context", "loc-1": "unseen 1 (`loc-1`)", "loc-2": "unseen 2 (`loc-2`)"}
-FIG12_CONTEXTS = ("loc-1", "bg-objects")   # Fig. 12's: another location, another background (objects beside the board)
-FIG12_LABELS = {"train": "training context", "loc-1": "new location", "bg-objects": "new background"}
+# Fig. 12 as the paper made it (Sec. 5.1.4): the gear ROI ablation's ROI 300 against its full view (the paper's
+# ROI-800), at four other table locations (scored by their mean) and with objects added to the background
+FIG12_LOCATIONS, FIG12_BACKGROUND = ("loc-1", "loc-2", "loc-3", "loc-4"), "bg-objects"
+FIG12_VIEWS = {"gear": {"300": "ROI 300", "full": "full view (ROI 800)"},       # the paper's: its ROI ablation
+               "peg": {"task": "task attention", "full": "full view"}}         # ours: the paper has no peg ablation
 ABLATIONS = {"gear-obs": "Fig. 9, observations (P-T, time-series P-T, time-series P-T-V; 200 episodes)",
              "gear-curriculum": "Fig. 10, curricula (adaptive, g2-c30, g2-c10, g2-c2, none; 300 episodes)",
              "gear-roi": "Fig. 11, ROI windows (task attention, full, 300, 200, 100x160; 200 episodes)"}
 # Fig. 12 is the simulation's (Sec. 5.1.4, the gear ablations), scored by the average cumulative reward
-PAPER_FIG12 = ("The paper (simulation, the gear's ROI ablation, Fig. 12, average cumulative reward): task attention "
-               "61.19 -> 54.73 (new background), 69.23 -> 46.46 (new location); full view 61.12 -> -23.06 and 59.51 "
-               "-> -14.65.")
+PAPER_FIG12 = ("The paper (simulation, the gear's ROI ablation, Fig. 12, average cumulative reward): ROI-300 61.19 -> "
+               "54.73 (new background), 69.23 -> 46.46 (new locations); ROI-800, the full view, 61.12 -> -23.06 and "
+               "59.51 -> -14.65.")
 LEVELS = (5.0, 10.0, 15.0, 20.0)
 PAPER_ABLATIONS = {   # what the paper says of each ablation's curves (Sec. 5.1.4); it gives no numbers beside these
     "obs": "The paper (Fig. 9, gear, the final error range after 200 episodes): all three learn at 2 mm; P-T tolerates "
@@ -293,6 +296,55 @@ def eval_cached(run, context, levels=LEVELS, episodes=20, log=print):
     return context_rows((run["dir"], context, tuple(levels), episodes), log)
 
 
+def fig12(runs, task, out_dir, log=print):
+    """Fig. 12 for a task: each view's mean cumulative reward per episode (over LEVELS, 20 trials each) in the
+    training context, at each of the four locations and their mean, and in the new background; the mean over
+    seeds with its 95 % bootstrap interval. The gear's views are its ROI ablation's (200 episodes each), the
+    peg's the quickstart's task attention and its full-view twin. Returns (markdown lines, figures)."""
+    views, contexts_ = FIG12_VIEWS[task], ("train",) + FIG12_LOCATIONS + (FIG12_BACKGROUND,)
+    cr, bars = {}, {}
+    for roi, label in views.items():
+        seeds = [r for r in runs if r["cfg"]["task"] == task and r["eval"] and r["cfg"]["roi"] == roi
+                 and (fam_of(r).get("roi") if task == "gear" else not fam_of(r) and families(r["cfg"]).get("roi"))]
+        if seeds:         # each seed's mean cumulative reward over the levels and trials
+            c = {ctx: [np.mean([x["cumulative_reward"][0] for x in eval_cached(r, ctx, log=log)]) for r in seeds]
+                 for ctx in contexts_}
+            c["locations"] = list(np.mean([c[x] for x in FIG12_LOCATIONS], 0))      # each seed's mean over four
+            cr[f"{label} ({len(seeds)} seeds)"] = c
+    if len(cr) < 2:
+        return [], []
+    columns = {"train": "training context", "locations": "new locations (mean of 4)",
+               FIG12_BACKGROUND: "new background"}
+    for view, c in cr.items():
+        bars[view] = {columns[k]: mean_ci(c[k]) for k in columns}
+    figs = [(f"fig-{task}-contexts.png", f"{task}: mean cumulative reward per episode over 5/10/15/20 mm (20 trials "
+                                         "each) in the training context, at four new locations (their mean) and "
+                                         "with a new background (the paper's Fig. 12; bars: 95 % bootstrap interval "
+                                         "over seeds)"),
+            (f"fig-{task}-views.png", f"{task}: what each view sees at the start of an episode in each context")]
+    figures.plot_context_bars(bars, os.path.join(out_dir, figs[0][0]), f"{task}: the training context and unseen ones")
+    figures.plot_views(task, tuple(views), contexts_, os.path.join(out_dir, figs[1][0]))
+    whose = ("the ROI ablation's policies (Fig. 11's runs, 200 episodes each), as the paper's Fig. 12" if task == "gear"
+             else "ours, not the paper's experiment (its Fig. 12 is the gear's ROI ablation): task attention trained "
+                  "as the quickstart trains (stopped when learned), the full view as long as its twin of the same seed")
+    head = ["training context"] + [f"`{x}`" for x in FIG12_LOCATIONS] + ["locations' mean", "new background"]
+    keys = ["train", *FIG12_LOCATIONS, "locations", FIG12_BACKGROUND]
+    md = ["", f"## Context generalization, {task} (the paper's Fig. 12)", "",
+          f"From {whose}. Each cell: the mean cumulative reward per episode over 5/10/15/20 mm (20 trials each on "
+          "held-out seeds), mean over seeds [95 % bootstrap interval over seeds]. The locations are `"
+          + "`, `".join(FIG12_LOCATIONS) + f"` (the paper: four table locations); the new background is "
+          f"`{FIG12_BACKGROUND}` (objects beside the board).", "",
+          "| view | " + " | ".join(head) + " |", "|---" * (1 + len(head)) + "|"]
+    md += [f"| {view} | " + " | ".join(ci(c[k], "{:.1f}") for k in keys) + " |" for view, c in cr.items()]
+    return md + ["", PAPER_FIG12], figs
+
+
+def mean_ci(values):
+    """[mean, lo, hi]: the mean of values (one a seed) and its 95 % bootstrap interval (figures.bootstrap_band)."""
+    mean, lo, hi = figures.bootstrap_band([[v] for v in values])
+    return [float(mean[0]), float(lo[0]), float(hi[0])]
+
+
 def ci(values, f="{:.2f}"):
     """The mean of values (one a seed) with its 95 % bootstrap interval, as the paper gives its statistics (Sec.
     5.1.5): 'mean [lo, hi]'; a single value alone; '-' for none."""
@@ -300,8 +352,7 @@ def ci(values, f="{:.2f}"):
         return "-"
     if len(values) == 1:
         return f.format(values[0])
-    mean, lo, hi = figures.bootstrap_band([[v] for v in values])
-    return f"{f.format(mean[0])} [{f.format(lo[0])}, {f.format(hi[0])}]"
+    return "{} [{}, {}]".format(*(f.format(x) for x in mean_ci(values)))
 
 
 def cell(row, k, f="{:.2f}"):
@@ -522,9 +573,10 @@ def write_report(patterns, out_dir="docs", log=print, readme=None):
         fx = " / ".join(f"{over(f'contact_force_{a}_N').mean():.2f}" for a in "xyz")
         md.append(f"| {label} | {seeds} | {ci(sr)} | {ct_cell} | {fx} | "
                   f"{over('cumulative_reward').mean():.1f} | {paper} |")
-        readme_rows.append(f"| {label} | {critics} | {ci(sr)} | {ct_cell} | {paper_sr_ct(paper)} |")
+        so_far = f" ({len(rows)} seed{'s' * (len(rows) > 1)} so far)" if len(rows) < 3 and name != "two-step" else ""
+        readme_rows.append(f"| {label} | {critics} | {ci(sr)}{so_far} | {ct_cell} | {paper_sr_ct(paper)} |")
     if readme:
-        write_readme_quickstart(readme, log)
+        write_readme_sentences(readme, log)
         write_readme_table(readme, README_TABLE1, ["| method | critics | SR | CT (s) | paper: SR, CT (s) |",
                                                    "|---|---|---|---|---|", *readme_rows], log)
     md += note(notes, "Table 1")
@@ -589,39 +641,12 @@ def write_report(patterns, out_dir="docs", log=print, readme=None):
             figures.plot_groups(groups, keys, os.path.join(out_dir, name), f"{task}: {title}")
             figs.append((name, f"{task}, {title} (the paper's {paper_fig}), every row at the same budget: mean over "
                                "seeds, 95% bootstrap band where there are several"))
-    # -- context generalization (Fig. 12): task attention against the full view, trained as the quickstart trains
+    # -- context generalization (Fig. 12): the gear's ROI ablation (the paper's), the peg's quickstart and its twin
     for task in ("peg", "gear"):
-        bars = {}
-        for roi, label in VIEWS.items():
-            seeds = [r for r in runs if r["cfg"]["task"] == task and r["eval"] and not fam_of(r)
-                     and families(r["cfg"]).get("roi") and r["cfg"]["roi"] == roi]
-            # each seed's mean cumulative reward over the levels and trials; bars over seeds
-            if seeds:
-                cr = {ctx: [np.mean([x["cumulative_reward"][0] for x in eval_cached(r, ctx, log=log)]) for r in seeds]
-                      for ctx in ("train",) + FIG12_CONTEXTS}
-                bars[f"{label} ({len(seeds)} seeds)"] = {FIG12_LABELS[c]: [float(np.mean(v)), float(np.std(v))]
-                                                         for c, v in cr.items()}
-        if len(bars) == 2:
-            name = f"fig-{task}-contexts.png"
-            figures.plot_context_bars(bars, os.path.join(out_dir, name), f"{task}: the training context and two "
-                                                                         "unseen ones")
-            figs.append((name, f"{task}: mean cumulative reward per episode over 5/10/15/20 mm (20 trials each) in the "
-                               "training context, a new location and a new background, task attention against the full "
-                               "view (the paper's Fig. 12; bars: spread over seeds)"))
-            figures.plot_views(task, ("task", "full"), ("train",) + FIG12_CONTEXTS,
-                               os.path.join(out_dir, f"fig-{task}-views.png"))
-            figs.append((f"fig-{task}-views.png", f"{task}: what the policy sees at the start of an episode in each "
-                                                  "context, through the task-attention ROI and the full view"))
-            labels = list(FIG12_LABELS.values())
-            md += ["", f"## Context generalization, {task} (the paper's Fig. 12)", "",
-                   "Task attention trained as the quickstart trains (stopped when learned), the full view as long as "
-                   "its twin of the same seed, or stopped when learned; mean cumulative reward per episode over "
-                   "5/10/15/20 mm, 20 trials each, mean +- std over seeds. New location: `" + FIG12_CONTEXTS[0] +
-                   "`, new background: `" + FIG12_CONTEXTS[1] + "` (objects beside the board).", "",
-                   "| ROI | " + " | ".join(labels) + " |", "|---" * (1 + len(labels)) + "|"]
-            md += [f"| {roi} | " + " | ".join(f"{v[c][0]:.1f} +- {v[c][1]:.1f}" for c in labels) + " |"
-                   for roi, v in bars.items()]
-            md += ["", PAPER_FIG12] + note(notes, f"Fig. 12, {task}")
+        md_fig, figs_fig = fig12(runs, task, out_dir, log)
+        if md_fig:
+            md += md_fig + note(notes, f"Fig. 12, {task}")
+            figs += figs_fig
     ours_peg = [r for r in runs if r["cfg"]["task"] == "peg" and method_of(r["cfg"]) == "ours" and r["eval"]]
     ours_peg = [r for r in ours_peg if not fam_of(r)] or ours_peg     # the quickstart's (stopped when learned) first
     if ours_peg and world != sim.WORLD:     # an episode recorded now would be this code's world, not the runs'
@@ -790,15 +815,21 @@ def quickstart_sentence():
             + ", ".join(f"{x:.2f}" for x in sr) + " at 20 mm")
 
 
-def write_readme_quickstart(path, log):
-    """The README's quickstart sentence (QUICKSTART) made anew from the reference runs."""
+README_SENTENCES = {"the quickstart's sentence": (QUICKSTART, quickstart_sentence)}   # what the README says in prose
+
+
+def write_readme_sentences(path, log):
+    """The README's generated sentences (README_SENTENCES) made anew from the archived runs."""
     with open(path) as f:
         text = f.read()
-    if not QUICKSTART.search(text):
-        raise ArgError(f"{path}: no quickstart sentence ('seeds 0-2 stopped after ... at 20 mm')")
+    for name, (pattern, make) in README_SENTENCES.items():
+        if not pattern.search(text):
+            raise ArgError(f"{path}: {name} is not there (pattern {pattern.pattern!r})")
+        sentence = make()
+        text = pattern.sub(lambda _: sentence, text, count=1)
     with open(path, "w") as f:
-        f.write(QUICKSTART.sub(quickstart_sentence(), text, count=1))
-    log(f"wrote {path}'s quickstart sentence")
+        f.write(text)
+    log(f"wrote {path}'s {' and '.join(README_SENTENCES)}")
 README_BACKGROUNDS = {"bg-objects": "objects beside", "bg-on-board": "parts on board", "bg-light": "other light",
                       "bg-colour": "other colours"}
 
@@ -876,16 +907,17 @@ def check_readme(path, log=print):
         write_contexts(CONTEXT_RUNS, docs, log=quiet, readme=copy)
         differ = [f"the table under {c!r}" for c in (README_TABLE1, README_CONTEXTS, README_FAMILIES)
                   if readme_table(path, c) != readme_table(copy, c)]
-        said = []
-        for p in (path, copy):
-            with open(p) as f:
-                said.append(" ".join(QUICKSTART.search(f.read()).group(0).split()))
-        differ += ["the quickstart's sentence"] if said[0] != said[1] else []
+        for name, (pattern, _) in README_SENTENCES.items():
+            said = []
+            for p in (path, copy):
+                with open(p) as f:
+                    said.append(" ".join(pattern.search(f.read()).group(0).split()))
+            differ += [name] if said[0] != said[1] else []
     if differ:
         raise cli.Failed(f"{path}: {' and '.join(differ)} {'is' if len(differ) == 1 else 'are'} not what the report "
                          f"makes of {RESULTS_DIR}/ now (python "
                          f"tools/report.py --readme {path}, and --contexts --readme {path}, make them anew)")
-    log(f"{path}: the quickstart's sentence, Table 1, the contexts' and the families' tables are the report's")
+    log(f"{path}: {', '.join(README_SENTENCES)}, Table 1, the contexts' and the families' tables are the report's")
 
 
 def write_readme_families(families, path, log):
@@ -948,7 +980,7 @@ def write_contexts(patterns, out_dir, levels=LEVELS, episodes=20, jobs=1, log=pr
         seeds = table[(task, view, ctx)]
         sr = np.array([[x["success_rate"] for x in rows] for rows in seeds])          # (seeds, levels)
         cr = np.array([np.mean([x["cumulative_reward"][0] for x in rows]) for rows in seeds])
-        bars.setdefault(task, {}).setdefault(view, {})[ctx] = [float(cr.mean()), float(cr.std())]
+        bars.setdefault(task, {}).setdefault(view, {})[ctx] = mean_ci(cr)
         goal = "-"
         if view.startswith(VIEWS["task"]) and goal_applies(ctx) and 15.0 in levels and 20.0 in levels:
             train = np.array([[x["success_rate"] for x in rows] for rows in table[(task, view, "train")]])
@@ -976,8 +1008,8 @@ def write_contexts(patterns, out_dir, levels=LEVELS, episodes=20, jobs=1, log=pr
         name = f"ctx-{task}-bars.png"
         figures.plot_context_bars(by_view, os.path.join(out_dir, name), f"{task}: trained in 'train', tested in each "
                                                                         "context")
-        md += [f"![{task}: Fig. 12]({name})", "", f"*{task}: mean cumulative reward per context (bars: spread over "
-               "seeds), task attention against the full view (the paper's Fig. 12)*", ""]
+        md += [f"![{task}: Fig. 12]({name})", "", f"*{task}: mean cumulative reward per context (bars: 95 % bootstrap "
+               "interval over seeds), task attention against the full view (the paper's Fig. 12)*", ""]
     for task in sorted({t for t, _, _ in table}):
         name = f"ctx-{task}-views.png"
         figures.plot_views(task, ("full", "task"), tuple(contexts.CONTEXTS), os.path.join(out_dir, name))
