@@ -579,7 +579,7 @@ def write_report(patterns, out_dir="docs", log=print, readme=None):
         write_readme_sentences(readme, log)
         write_readme_table(readme, README_TABLE1, ["| method | critics | SR | CT (s) | paper: SR, CT (s) |",
                                                    "|---|---|---|---|---|", *readme_rows], log)
-    md += note(notes, "Table 1")
+    md += note(notes, "Table 1") + sb3_section()
     # -- Table 2: ours, trained as the quickstart trains, in the training context and two unseen ones
     md += ["", "## Table 2: our policy in the training context and two unseen ones", "",
            "Ours trained as the quickstart trains (stopped when learned), tested at another two places of the board, "
@@ -800,7 +800,7 @@ def family_section(runs, episodes, jobs, log, readme=None):
 README_FAMILIES = "Held-out scenes drawn from families"      # the README's captions of the tables the report makes
 README_TABLE1 = "Table 1 in today's world"
 README_CONTEXTS = "Trained in `train`, tested in each context"
-QUICKSTART_RUNS = f"{RESULTS_DIR}/speed/halves-s*"     # the quickstart's reference runs: its command, seeds 0-2
+QUICKSTART_RUNS = f"{RESULTS_DIR}/speed/onepass-s*"    # the quickstart's reference runs: its command, seeds 0-2
 QUICKSTART = re.compile(r"seeds\s+\d+-\d+\s+stopped\s+after\s.*?\sat\s+20\s+mm", re.S)   # its README sentence
 
 
@@ -810,12 +810,57 @@ def quickstart_sentence():
     ev = [r["eval"] for r in runs]
     sr = [next(x["success_rate"] for x in e["rows"] if x["error_mm"] == 20.0) for e in ev]
     episodes, minutes = (", ".join(f"{e[k]:g}" for e in ev) for k in ("train_episodes", "train_minutes"))
+    logs = [os.path.join(r["dir"], "train.log") for r in runs]
+    walls = [re.search(r"([\d.]+) s wall\s*$", open(p).read()) if os.path.exists(p) else None for p in logs]
+    wall = ", ".join(f"{float(w.group(1)) / 60:.1f}" for w in walls) + " min with the evaluation, " \
+        if all(walls) else ""                                  # the console's last line, where /usr/bin/time wrote it
     return (f"seeds {runs[0]['cfg']['seed']}-{runs[-1]['cfg']['seed']} stopped after {episodes} episodes ({minutes} "
-            f"min of training; [results/speed](results/speed), world {ev[0]['world']}) and insert "
+            f"min of training, {wall}[results/speed](results/speed), world {ev[0]['world']}) and insert "
             + ", ".join(f"{x:.2f}" for x in sr) + " at 20 mm")
 
 
-README_SENTENCES = {"the quickstart's sentence": (QUICKSTART, quickstart_sentence)}   # what the README says in prose
+SB3_RUNS = f"{RESULTS_DIR}/sb3/sb3-vs-ours-s*.json"    # bench/bench_sb3.py's results, one a seed
+SB3 = re.compile(r"Stable-Baselines3's\s+SAC,\s+given\s.*?\sagainst\s+ours'.*?episodes", re.S)   # its README sentence
+
+
+def sb3_sentence():
+    """The README's sentence of SB3's SAC beside ours in the same minutes, from bench_sb3.py's archived results."""
+    res = sorted((read_json(p) for p in glob.glob(SB3_RUNS)), key=lambda r: r["seed"])
+    if not res or {r.get("world") for r in res} != {sim.WORLD}:    # (one world: the sentence names it)
+        raise ArgError(f"{SB3_RUNS}: no results of world {sim.WORLD} (python bench/bench_sb3.py --seed S, then copy "
+                       "its json there)")
+    said = lambda who, k, f="g": ", ".join(format(r[who][k], f) for r in res)  # noqa: E731
+    return (f"Stable-Baselines3's SAC, given the same env, curriculum and minutes as ours (seeds "
+            f"{', '.join(str(r['seed']) for r in res)}; {said('sb3', 'train_minutes', '.1f')} min; "
+            f"[results/sb3](results/sb3), world {sim.WORLD}), inserts {said('sb3', 'sr20', '.2f')} at 20 mm after "
+            f"{said('sb3', 'episodes')} episodes, against ours' {said('ours', 'sr20', '.2f')} after "
+            f"{said('ours', 'episodes')} episodes")
+
+
+def sb3_section():
+    """RESULTS.md's lines on SB3's SAC beside ours in the same minutes (bench_sb3.py's archived results), if any."""
+    res = sorted((read_json(p) for p in glob.glob(SB3_RUNS)), key=lambda r: r["seed"])
+    res = [r for r in res if r.get("world") == sim.WORLD]
+    if not res:
+        return []
+    crit = lambda m: "not reached" if m is None else f"{m:.1f}"          # noqa: E731
+    md = ["", "## Stable-Baselines3 beside ours, in the same minutes", "",
+          "`python bench/bench_sb3.py --seed S --ours results/speed/halves-sS` (ours: the quickstart's runs of "
+          "before the one-pass stop rule): SB3's SAC (`MultiInputPolicy`, its "
+          "defaults, its CNN on the (1, 80, 80) image; a 50,000 replay buffer) on `tacrl/PegInsertion-v0` with our "
+          "adaptive curriculum between episodes, trained for the minutes ours took, the machine to itself; then both "
+          "greedy on the same 20 held-out episodes at 20 mm. To criterion: the minutes until the training curve held "
+          "20 mm for 30 episodes with a success rate over the last 15 of 0.9 or more.", "",
+          "| seed | minutes | ours: episodes | ours: to criterion (min) | ours: SR at 20 mm | SB3: episodes | "
+          "SB3: final E_r (mm) | SB3: to criterion (min) | SB3: SR at 20 mm |", "|---" * 9 + "|"]
+    md += [f"| {r['seed']} | {r['sb3']['train_minutes']:.1f} | {r['ours']['episodes']} | "
+           f"{crit(r['ours']['to_criterion'])} | {r['ours']['sr20']:.2f} | {r['sb3']['episodes']} | "
+           f"{r['sb3']['final_e_r_mm']:g} | {crit(r['sb3']['to_criterion'])} | {r['sb3']['sr20']:.2f} |" for r in res]
+    return md
+
+
+README_SENTENCES = {"the quickstart's sentence": (QUICKSTART, quickstart_sentence),   # what the README says in prose
+                    "the SB3 sentence": (SB3, sb3_sentence)}
 
 
 def write_readme_sentences(path, log):
