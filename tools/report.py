@@ -62,8 +62,9 @@ TABLE2_LABELS = {"train": "training context", "loc-1": "unseen 1 (`loc-1`)", "lo
 # Fig. 12 as the paper made it (Sec. 5.1.4): the gear ROI ablation's ROI 300 against its full view (the paper's
 # ROI-800), at four other table locations (scored by their mean) and with objects added to the background
 FIG12_LOCATIONS, FIG12_BACKGROUND = ("loc-1", "loc-2", "loc-3", "loc-4"), "bg-objects"
+VIEWS = {"task": "task attention", "full": "full view"}       # the quickstart's view and its full-view twin
 FIG12_VIEWS = {"gear": {"300": "ROI 300", "full": "full view (ROI 800)"},       # the paper's: its ROI ablation
-               "peg": {"task": "task attention", "full": "full view"}}         # ours: the paper has no peg ablation
+               "peg": VIEWS}                                                   # ours: the paper has no peg ablation
 ABLATIONS = {"gear-obs": "Fig. 9, observations (P-T, time-series P-T, time-series P-T-V; 200 episodes)",
              "gear-curriculum": "Fig. 10, curricula (adaptive, g2-c30, g2-c10, g2-c2, none; 300 episodes)",
              "gear-roi": "Fig. 11, ROI windows (task attention, full, 300, 200, 100x160; 200 episodes)"}
@@ -302,7 +303,7 @@ def fig12(runs, task, out_dir, log=print):
     seeds with its 95 % bootstrap interval. The gear's views are its ROI ablation's (200 episodes each), the
     peg's the quickstart's task attention and its full-view twin. Returns (markdown lines, figures)."""
     views, contexts_ = FIG12_VIEWS[task], ("train",) + FIG12_LOCATIONS + (FIG12_BACKGROUND,)
-    cr, bars = {}, {}
+    cr = {}
     for roi, label in views.items():
         seeds = [r for r in runs if r["cfg"]["task"] == task and r["eval"] and r["cfg"]["roi"] == roi
                  and (fam_of(r).get("roi") if task == "gear" else not fam_of(r) and families(r["cfg"]).get("roi"))]
@@ -315,8 +316,7 @@ def fig12(runs, task, out_dir, log=print):
         return [], []
     columns = {"train": "training context", "locations": "new locations (mean of 4)",
                FIG12_BACKGROUND: "new background"}
-    for view, c in cr.items():
-        bars[view] = {columns[k]: mean_ci(c[k]) for k in columns}
+    bars = {view: {columns[k]: mean_ci(c[k]) for k in columns} for view, c in cr.items()}
     figs = [(f"fig-{task}-contexts.png", f"{task}: mean cumulative reward per episode over 5/10/15/20 mm (20 trials "
                                          "each) in the training context, at four new locations (their mean) and "
                                          "with a new background (the paper's Fig. 12; bars: 95 % bootstrap interval "
@@ -668,7 +668,6 @@ def write_report(patterns, out_dir="docs", log=print, readme=None):
 
 
 # ---------------------------------------------------------------- context generalization (Sec. 5.1.4, Fig. 12)
-VIEWS = {"task": "task attention", "full": "full view"}
 FAMILY_MM = 20.0                       # the error range the families are tested at
 FAMILY_WHAT = {"place": "the board 12-32 cm from training's place, turned up to 0.5 rad",
                "light": "light from any side 35-85 deg high, 2700-7500 K, ambient 0.3-0.8 and diffuse 0.15-0.5 "
@@ -823,9 +822,14 @@ SB3_RUNS = f"{RESULTS_DIR}/sb3/sb3-vs-ours-s*.json"    # bench/bench_sb3.py's re
 SB3 = re.compile(r"Stable-Baselines3's\s+SAC,\s+given\s.*?\sagainst\s+ours'.*?episodes", re.S)   # its README sentence
 
 
+def sb3_results():
+    """bench_sb3.py's archived results (SB3_RUNS), by seed."""
+    return sorted((read_json(p) for p in glob.glob(SB3_RUNS)), key=lambda r: r["seed"])
+
+
 def sb3_sentence():
     """The README's sentence of SB3's SAC beside ours in the same minutes, from bench_sb3.py's archived results."""
-    res = sorted((read_json(p) for p in glob.glob(SB3_RUNS)), key=lambda r: r["seed"])
+    res = sb3_results()
     if not res or {r.get("world") for r in res} != {sim.WORLD}:    # (one world: the sentence names it)
         raise ArgError(f"{SB3_RUNS}: no results of world {sim.WORLD} (python bench/bench_sb3.py --seed S, then copy "
                        "its json there)")
@@ -839,8 +843,7 @@ def sb3_sentence():
 
 def sb3_section():
     """RESULTS.md's lines on SB3's SAC beside ours in the same minutes (bench_sb3.py's archived results), if any."""
-    res = sorted((read_json(p) for p in glob.glob(SB3_RUNS)), key=lambda r: r["seed"])
-    res = [r for r in res if r.get("world") == sim.WORLD]
+    res = [r for r in sb3_results() if r.get("world") == sim.WORLD]
     if not res:
         return []
     crit = lambda m: "not reached" if m is None else f"{m:.1f}"          # noqa: E731
@@ -875,6 +878,8 @@ def write_readme_sentences(path, log):
     with open(path, "w") as f:
         f.write(text)
     log(f"wrote {path}'s {' and '.join(README_SENTENCES)}")
+
+
 README_BACKGROUNDS = {"bg-objects": "objects beside", "bg-on-board": "parts on board", "bg-light": "other light",
                       "bg-colour": "other colours"}
 
