@@ -2,6 +2,7 @@
 against each other and the files they name, before any work; a run directory's default name and config; --eval's
 run; and how torch uses the CPU. It takes the Config class from its caller and imports nothing of tacrl.py.
 """
+import contextlib
 import ctypes
 import importlib
 import json
@@ -57,6 +58,12 @@ def use_cpu(device="cpu"):
     if device == "cpu":
         torch.set_num_threads(1)
         keep_freed_memory()
+
+
+def cores(cfg):
+    """The cores a run uses (--threads; 0: 2 where there are 2): an update's two halves side by side
+    (policy.Helper), and an evaluation's episodes in two processes (evaluate.Worker)."""
+    return cfg.threads or min(2, os.cpu_count() or 1)
 
 
 def warn_oversubscribed(prog, threads, processes=1, cores=None):
@@ -240,8 +247,10 @@ def run_evaluation(cfg):
         act = pi if pi is not None else baselines.make(cfg.eval, env)
         if cfg.eval == "two-step":
             print(f"two-step: calibrated the image -> offset map, median error {act.fit_error * 1000:.2f} mm")
+        second_core = pi is not None and cfg.device != "cuda" and cores(cfg) > 1 and cfg.episodes > 1 and not cfg.gui
         try:                                          # the seeds of eval.json
-            row = evaluate.evaluate(env, act, cfg.episodes, evaluate.EVAL_SEED + cfg.seed, video)
+            with evaluate.Worker() if second_core else contextlib.nullcontext() as worker:
+                row = evaluate.evaluate(env, act, cfg.episodes, evaluate.EVAL_SEED + cfg.seed, video, worker=worker)
         finally:
             if video is not None:
                 with scene.quiet_c_output():

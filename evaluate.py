@@ -9,6 +9,12 @@ contact force per world axis in each episode (CF, N) and the cumulative reward (
 [mean, std] over the episodes. tacrl.py's --eval, the report and the benches evaluate through here.
 """
 import os
+import pickle
+import signal
+import socket
+import subprocess
+import sys
+import threading
 import time
 
 import cv2
@@ -24,12 +30,15 @@ EVAL_SEED = 1000             # evaluation episodes use seeds from EVAL_SEED + th
 POLICY_META = ("task", "roi", "vanilla", "ex_r", "e_r_max")     # what training tells evaluation (tacrl.finish)
 
 
-def save_policy(path, sac, meta):
-    """policy.pt: the actor and the encoder it reads (the critics stay behind), and meta, a dict of
+def policy_file(sac, meta):
+    """What policy.pt holds: the actor and the encoder it reads (the critics stay behind), and meta, a dict of
     plain values that evaluation must know of training ('obs' among them: the encoder's kind)."""
-    rundir.save_atomic({"format": POLICY_FORMAT, **meta, "norm": sac.actor_enc.norm_kind,
-                 "image_norm": sac.actor_enc.image_norm, "encoder": sac.actor_enc.state_dict(),
-                 "actor": sac.actor.state_dict()}, path)
+    return {"format": POLICY_FORMAT, **meta, "norm": sac.actor_enc.norm_kind, "image_norm": sac.actor_enc.image_norm,
+            "encoder": sac.actor_enc.state_dict(), "actor": sac.actor.state_dict()}
+
+
+def save_policy(path, sac, meta):
+    rundir.save_atomic(policy_file(sac, meta), path)
 
 
 class TrainedPolicy:
@@ -40,6 +49,7 @@ class TrainedPolicy:
         if not isinstance(d, dict) or d.get("format") != POLICY_FORMAT:
             raise ValueError("not a tacrl policy file")
         self.meta = {k: v for k, v in d.items() if k not in ("format", "encoder", "actor")}
+        self.file = d                                           # (what a Worker is sent to play the same policy)
         self.device = device
         if (d.get("image_encoder", "cnn"), d.get("image_feat", policy.FEAT)) != ("cnn", policy.FEAT):
             raise ValueError(f"its image encoder ({d['image_encoder']}, {d['image_feat']}-d) is the critics study's "
@@ -82,31 +92,45 @@ def episode_seed(seed, k):
     return seed * 100003 + k
 
 
-def evaluate(env, act, episodes, seed, video=None, log=print):
+def play(env, act, seed, video=None):
+    """One evaluation episode: (success, completion time s, peak |contact force| per world axis (3,) N, return).
+    video: an open_video writer that gets a frame a policy step."""
+    peak = np.zeros(3)
+
+    def on_step(obs, r, info):
+        np.maximum(peak, np.abs(info["f_world"][:3]), out=peak)
+        if video is not None:
+            video.write(env.world.render_external()[:, :, ::-1])     # RGB -> OpenCV's BGR
+    term, info, ret = sim.run_episode(env, act, seed=seed, on_step=on_step)
+    return bool(term), float(info["t"]), peak, float(ret)
+
+
+def evaluate(env, act, episodes, seed, video=None, log=print, worker=None):
     """Roll out act(obs) -> action for `episodes` episodes (episode k's seed: episode_seed(seed, k)); returns the
     Table-1/2 row: success rate, completion time of the successful episodes (s), peak |contact force|
     per world axis in each episode (N) and cumulative reward, each as [mean, std]. video: an open_video
-    writer that gets the first episode, a frame a policy step."""
-    succ, times, forces, returns = [], [], [], []
-    t0 = time.time()
-    for ep in range(episodes):
-        peak = np.zeros(3)
+    writer that gets the first episode, a frame a policy step. worker: a Worker that plays the odd episodes
+    of a TrainedPolicy meanwhile, on the second core (the same row: an episode depends on its seed only)."""
+    shared = worker is not None and isinstance(act, TrainedPolicy) and episodes > 1
+    mine = range(0, episodes, 2) if shared else range(episodes)
+    if shared:
+        worker.start(env, act, [episode_seed(seed, k) for k in range(1, episodes, 2)])
+    out, t0 = {}, time.time()
 
-        def on_step(obs, r, info, first=ep == 0):
-            np.maximum(peak, np.abs(info["f_world"][:3]), out=peak)
-            if video is not None and first:
-                video.write(env.world.render_external()[:, :, ::-1])     # RGB -> OpenCV's BGR
-        term, info, ret = sim.run_episode(env, act, seed=episode_seed(seed, ep), on_step=on_step)
-        succ.append(term)
-        returns.append(ret)
-        forces.append(peak)
-        if term:
-            times.append(info["t"])
+    def show(k, res, done, left):
         el = time.time() - t0
-        eta = el / (ep + 1) * (episodes - ep - 1)
-        log(f"episode {ep + 1}/{episodes}  success {int(term)}  time {info['t']:5.1f}s  return {ret:7.1f}  "
-            f"|F|max x/y/z {peak[0]:5.1f}/{peak[1]:5.1f}/{peak[2]:5.1f} N  elapsed {el:5.0f}s  ETA {eta:4.0f}s")
-    forces = np.array(forces)
+        log(f"episode {k + 1}/{episodes}  success {int(res[0])}  time {res[1]:5.1f}s  return {res[3]:7.1f}  "
+            f"|F|max x/y/z {res[2][0]:5.1f}/{res[2][1]:5.1f}/{res[2][2]:5.1f} N  elapsed {el:5.0f}s  "
+            f"ETA {el / done * left:4.0f}s")
+    for i, k in enumerate(mine):
+        out[k] = play(env, act, episode_seed(seed, k), video if k == 0 else None)
+        show(k, out[k], i + 1, len(mine) - i - 1)
+    if shared:
+        for k, res in zip(range(1, episodes, 2), worker.results()):
+            out[k] = res
+            show(k, res, 1, 0)
+    succ, times, forces, returns = zip(*(out[k] for k in range(episodes)))
+    times, forces = [t for t, s in zip(times, succ) if s], np.array(forces)
     mean_std = lambda x: [float(np.mean(x)), float(np.std(x))] if len(x) else None   # noqa: E731 (None: no success)
     return {"success_rate": float(np.mean(succ)), "completion_time_s": mean_std(times),
             "contact_force_x_N": mean_std(forces[:, 0]), "contact_force_y_N": mean_std(forces[:, 1]),
@@ -114,13 +138,13 @@ def evaluate(env, act, episodes, seed, video=None, log=print):
             "episodes": episodes}
 
 
-def evaluate_levels(env, act, levels, episodes, seed, log=lambda row: None):
+def evaluate_levels(env, act, levels, episodes, seed, log=lambda row: None, worker=None):
     """Table-2 rows: `evaluate` at each error range E_r in `levels` (mm), with Ex_r held where the
     policy's training ended (the controller stays as trained)."""
     rows = []
     for mm in levels:
         env.set_ranges(mm / 1000, act.meta["ex_r"])
-        row = evaluate(env, act, episodes, seed, log=lambda *_: None)
+        row = evaluate(env, act, episodes, seed, log=lambda *_: None, worker=worker)
         row.update(error_mm=mm, ex_r_mm=round(env.ex_r * 1000, 3))
         rows.append(row)
         log(row)
@@ -133,6 +157,87 @@ def format_row(name, row):
     return (f"{'policy':<22} {'SR':>5}  {'CT (s)':>14}  {'Fx (N)':>14}  {'Fy (N)':>14}  {'Fz (N)':>14}  {'CR':>16}\n"
             f"{name:<22} {row['success_rate']:5.2f}  {ms('completion_time_s'):>14}  {ms('contact_force_x_N'):>14}  "
             f"{ms('contact_force_y_N'):>14}  {ms('contact_force_z_N'):>14}  {ms('cumulative_reward', '{:.1f}'):>16}")
+
+
+# ---------------------------------------------------------------- the second core
+class Worker:
+    """A second process that plays some of an evaluation's episodes while this one plays the rest, so that
+    evaluation uses both cores as the updates do. Every episode is a fresh world drawn from its seed alone
+    (sim.AssemblyEnv.reset), so who plays it changes nothing. A TrainedPolicy's weights travel to it (as
+    policy.pt holds them), and the env's constructor arguments (sim.AssemblyEnv.init_kwargs). CPU only: a GPU
+    policy's numbers would differ from the worker's. Use it as a context manager; it is started at once, so
+    that its imports overlap other work, and ends when this process closes it or ends."""
+
+    def __init__(self):
+        here, there = socket.socketpair()
+        code = f"import sys; sys.path.insert(0, {os.path.dirname(os.path.abspath(__file__))!r}); " \
+               "import evaluate; evaluate.serve(int(sys.argv[1]))"
+        # its own session: a Ctrl-C in the terminal reaches this process, which closes the socket, and not the worker
+        self.proc = subprocess.Popen([sys.executable, "-c", code, str(there.fileno())], pass_fds=(there.fileno(),),
+                                     stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, start_new_session=True)
+        there.close()
+        self.sock, self.sender = here, None
+        self.stream = here.makefile("rwb")
+
+    def start(self, env, pi, seeds):
+        """Play pi in an env built as `env` is, at its E_r and Ex_r, with these episode seeds (results() gives them)."""
+        job = (env.init_kwargs, env.e_r, env.ex_r, pi.file, list(seeds))
+        self.sender = threading.Thread(target=self._send, args=(job,))   # (it may still be importing: no waiting here)
+        self.sender.start()
+
+    def _send(self, job):
+        try:
+            pickle.dump(job, self.stream)
+            self.stream.flush()
+        except OSError:                         # it died: results() says so
+            pass
+
+    def results(self):
+        """[play's (success, time, peak force, return)] of the seeds given to start, in their order."""
+        self.sender.join()
+        try:
+            return pickle.load(self.stream)
+        except (EOFError, OSError):
+            raise RuntimeError("the evaluation worker process ended (its error is printed above)") from None
+
+    def close(self):
+        self.stream.close()
+        self.sock.close()
+        try:
+            self.proc.wait(10)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+def serve(fd):
+    """The Worker's process: (env kwargs, E_r, Ex_r, policy file, seeds) -> [play(...) of each seed], until EOF."""
+    import torch
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    torch.set_num_threads(1)                            # one core: the other is the process that sent the work
+    stream, env, built = socket.socket(fileno=fd).makefile("rwb"), None, None
+    try:
+        while True:
+            try:
+                kwargs, e_r, ex_r, d, seeds = pickle.load(stream)
+            except EOFError:
+                return
+            if kwargs != built:
+                if env is not None:
+                    env.close()
+                env, built = sim.AssemblyEnv(**kwargs), kwargs
+            env.set_ranges(e_r, ex_r)
+            pi = TrainedPolicy(d)
+            pickle.dump([play(env, pi, s) for s in seeds], stream)
+            stream.flush()
+    finally:
+        if env is not None:
+            env.close()
 
 
 # ---------------------------------------------------------------- a video a browser plays

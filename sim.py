@@ -231,6 +231,10 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
         self.world = World(task, clearance, gui, ft_noise, image_noise, ctx)
         self.e_r_max = max(E_R_FINAL, e_r, e_r_max or 0.0)
         self.approach = max(APPROACH, round(self.e_r_max + CLEAR, 6))
+        # (what builds the same env elsewhere, without a window: evaluate.Worker)
+        self.init_kwargs = dict(task=task, context=context, roi=roi, clearance=clearance, image=image,
+                                base_policy=base_policy, e_r_max=self.e_r_max, ft_noise=ft_noise,
+                                image_noise=image_noise, keypoint=keypoint, randomize=tuple(randomize))
         self.set_ranges(e_r, ex_r)
         self.np_random = np.random.default_rng()      # the errors' generator (gymnasium's name for it)
         self.scene_rng = np.random.default_rng(0)     # the scenes' of a family or randomization (not the errors')

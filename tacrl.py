@@ -13,6 +13,7 @@ The file reads top to bottom: the run's config (every flag, once), Algorithm 1 (
 command line's checks and --eval are command.py's (cli.py: what every command shares). What a run directory
 holds is rundir.py's; several seeds and the paper's experiments at once: tools/sweep.py.
 """
+import contextlib
 import json
 import os
 import signal
@@ -98,8 +99,9 @@ class Config:
                          ".mp4 (H.264, where OpenCV has it): a browser plays either", mode="eval")
     # the machine
     device: str = opt("auto", "where torch runs", ("auto", "cpu", "cuda"))
-    threads: int = opt(0, "CPU threads of an update: the two halves of each batch side by side (2) or one after the "
-                          "other (1), the same numbers either way (0: 2 where there are 2 cores)", bounds=(0, 2))
+    threads: int = opt(0, "CPU cores a run uses: an update's two halves of each batch side by side and evaluation's "
+                          "episodes in two processes (2), or one after the other (1), the same numbers either way "
+                          "(0: 2 where there are 2 cores)", bounds=(0, 2))
     gui: bool = opt(False, "open the PyBullet window")
 
     @property
@@ -131,32 +133,34 @@ def train(cfg, log=lambda msg: print(msg, flush=True)):
     log(f"config: {asdict(cfg)}")
     log(f"parameters: {sac.parameter_counts()}; {cfg.device}" + (f", {sac.helper.threads} threads an update"
                                                                   if cfg.device == "cpu" else ""))
-    try:
-        # Lines 7-12, learn the residual TA-MRP
-        for ep in range(run.episode, cfg.train_episodes):               # line 8: for n in max-episodes
-            env.set_ranges(*curr.ranges())                               # E_r and Ex_r where line 11 left them
-            # line 9, interact with the environment, and store in R. The warm-up acts uniformly at random
-            # (Spinning Up's start steps), so that the critics see every action before the actor follows them
-            episode = rollout(env, sac.act if ep >= cfg.warmup else random_action)
-            buf.add_episode(episode)
-            run.lap("env")
-            # line 10, update the policy with SAC
-            losses = []
-            for _ in range(cfg.updates if ep >= cfg.warmup else 0):
-                losses.append(sac.update(buf.sample(cfg.batch, rng, cfg.augment)))
-            run.lap("update")
-            curr.update(bool(episode["term"][-1]))                      # line 11: generate the curriculum, Eq. 16
-            learned = stop.learned(env.e_r >= curr.final - 1e-9, lambda: validate(cfg, sac, curr), log, ep)
-            run.save(episode, losses, sac.helper.threads, sr15=curr.success_rate, e_r_mm=env.e_r * 1000,
-                     ex_r_mm=env.ex_r * 1000, delta=curr.delta)         # a kill loses at most the episode in flight
-            if learned:
-                break
-    except KeyboardInterrupt:
-        raise KeyboardInterrupt(f"every finished episode is saved; continue with --resume {cfg.run_dir}")
-    finally:
-        env.close()
-        run.close()
-    return finish(cfg, sac, curr, env.e_r_max, run.seconds(), log)
+    second_core = sac.device == "cpu" and sac.helper.threads > 1            # validation and evaluation on 2 cores
+    with evaluate.Worker() if second_core else contextlib.nullcontext() as worker:
+        try:
+            # Lines 7-12, learn the residual TA-MRP
+            for ep in range(run.episode, cfg.train_episodes):               # line 8: for n in max-episodes
+                env.set_ranges(*curr.ranges())                               # E_r and Ex_r where line 11 left them
+                # line 9, interact with the environment, and store in R. The warm-up acts uniformly at random
+                # (Spinning Up's start steps), so that the critics see every action before the actor follows them
+                episode = rollout(env, sac.act if ep >= cfg.warmup else random_action)
+                buf.add_episode(episode)
+                run.lap("env")
+                # line 10, update the policy with SAC
+                losses = []
+                for _ in range(cfg.updates if ep >= cfg.warmup else 0):
+                    losses.append(sac.update(buf.sample(cfg.batch, rng, cfg.augment)))
+                run.lap("update")
+                curr.update(bool(episode["term"][-1]))                      # line 11: generate the curriculum, Eq. 16
+                learned = stop.learned(env.e_r >= curr.final - 1e-9, lambda: validate(cfg, sac, curr, worker), log, ep)
+                run.save(episode, losses, sac.helper.threads, sr15=curr.success_rate, e_r_mm=env.e_r * 1000,
+                         ex_r_mm=env.ex_r * 1000, delta=curr.delta)         # a kill loses at most the episode in flight
+                if learned:
+                    break
+        except KeyboardInterrupt:
+            raise KeyboardInterrupt(f"every finished episode is saved; continue with --resume {cfg.run_dir}")
+        finally:
+            env.close()
+            run.close()
+        return finish(cfg, sac, curr, env.e_r_max, run.seconds(), log, worker)
 
 
 def rollout(env, act, seed=None):
@@ -214,7 +218,7 @@ def make_sac(cfg, device=None):
     return policy.SAC(cfg.obs, POSE_SCALE, sim.F_MAX6, lr=cfg.lr, gamma=cfg.gamma, target_entropy=cfg.target_entropy,
                       state_dim=STATE_DIM if cfg.critic == "privileged" else 0,
                       extra_dim=EXTRA_DIM if cfg.critic == "multimodal" else 0, image_norm=cfg.image_norm,
-                      threads=cfg.threads or min(2, os.cpu_count() or 1),
+                      threads=command.cores(cfg),
                       device=device or ("cpu" if cfg.device == "auto" else cfg.device))
 
 
@@ -259,15 +263,16 @@ class StopRule:
         self.held = int(d["held"])
 
 
-def validate(cfg, sac, curr):
-    """Greedy successes at the final range, in a new env, on seeds apart from training's and evaluation's."""
+def validate(cfg, sac, curr, worker=None):
+    """Greedy successes at the final range, in a new env, on seeds apart from training's and evaluation's (half of
+    them played by worker, an evaluate.Worker, where there is one)."""
+    pi = evaluate.TrainedPolicy(evaluate.policy_file(sac, {"obs": cfg.obs}), sac.device)   # sac.act's greedy action
     with make_env(cfg, e_r=curr.final, ex_r=curr.ranges()[1]) as env:
-        row = evaluate.evaluate(env, lambda obs: sac.act(obs, deterministic=True), VAL_EPISODES, VAL_SEED + cfg.seed,
-                                log=lambda *_: None)
+        row = evaluate.evaluate(env, pi, VAL_EPISODES, VAL_SEED + cfg.seed, log=lambda *_: None, worker=worker)
     return round(row["success_rate"] * VAL_EPISODES)
 
 
-def finish(cfg, sac, curr, e_r_max, seconds, log):
+def finish(cfg, sac, curr, e_r_max, seconds, log, worker=None):
     """policy.pt (with what evaluation must know of training), curves.png and eval.json: held-out seeds."""
     policy_path = os.path.join(cfg.run_dir, "policy.pt")
     evaluate.save_policy(policy_path, sac, {"task": cfg.task, "obs": cfg.obs, "roi": cfg.roi, "vanilla": cfg.vanilla,
@@ -277,7 +282,8 @@ def finish(cfg, sac, curr, e_r_max, seconds, log):
     levels = sorted({float(x) for x in cfg.eval_levels.split(",")})
     with evaluate.eval_env(cfg.task, pi, cfg.context, cfg.roi, cfg.clearance_mm, gui=cfg.gui) as env:
         show = lambda row: log(evaluate.format_row(f"TA-MRP {cfg.task} {row['error_mm']:g}mm", row))   # noqa: E731
-        rows = evaluate.evaluate_levels(env, pi, levels, cfg.episodes, evaluate.EVAL_SEED + cfg.seed, log=show)
+        rows = evaluate.evaluate_levels(env, pi, levels, cfg.episodes, evaluate.EVAL_SEED + cfg.seed, log=show,
+                                        worker=worker)
     trained = len(rundir.read_metrics(cfg.run_dir)["episode"])     # fewer than --train-episodes if stopped as learned
     result = {"task": cfg.task, "obs": cfg.obs, "curriculum": cfg.curriculum, "context": cfg.context, "roi": cfg.roi,
               "seed": cfg.seed, "eval_seed": evaluate.EVAL_SEED + cfg.seed, "train_episodes": trained,

@@ -161,6 +161,32 @@ def test_evaluating_policy_pt_repeats_eval_json(tiny_run, tmp_path, monkeypatch)
     assert {k: ev["rows"][0][k] for k in keys} == {k: json.loads(again.read_text())[k] for k in keys}
 
 
+def test_a_worker_process_plays_every_other_episode_and_the_row_is_the_same(monkeypatch):
+    # every episode is a fresh world drawn from its seed alone, so who plays it changes nothing. The policy: a new
+    # agent's, its residual scaled down so that the hand-designed part inserts in about 50 steps
+    sac = tacrl.make_sac(tacrl.parse_args(["--task", "peg", "--threads", "1"]))
+    with torch.no_grad():
+        sac.actor.net[-1].weight.mul_(0.01)
+    pi = evaluate.TrainedPolicy(evaluate.policy_file(sac, {"task": "peg", "obs": "ts-ptv", "roi": "task",
+                                                           "vanilla": False, "ex_r": 0.001, "e_r_max": 0.02}))
+    with evaluate.eval_env("peg", pi) as env, evaluate.Worker() as worker:
+        alone = evaluate.evaluate(env, pi, 3, 5, log=lambda *_: None)
+        played, real_play = [], evaluate.play
+        monkeypatch.setattr(evaluate, "play", lambda *a: played.append(a[2]) or real_play(*a))
+        shared = evaluate.evaluate(env, pi, 3, 5, log=lambda *_: None, worker=worker)
+    assert shared == alone and played == [evaluate.episode_seed(5, 0), evaluate.episode_seed(5, 2)]
+    assert alone["success_rate"] > 0                   # (the episodes ended early, not all at the time limit)
+
+
+def test_validation_plays_the_greedy_action_of_the_agent_it_copies():
+    cfg = tacrl.parse_args(["--task", "peg", "--threads", "1"])
+    sac = tacrl.make_sac(cfg)
+    pi = evaluate.TrainedPolicy(evaluate.policy_file(sac, {"obs": cfg.obs}))
+    with tacrl.make_env(cfg, e_r=0.001) as env:
+        obs, _ = env.reset(seed=3)
+    assert np.array_equal(pi(obs), sac.act(obs, deterministic=True))
+
+
 def test_a_policy_is_evaluated_with_the_exploration_range_it_trained_with(tiny_run, tmp_path, capsys, monkeypatch):
     monkeypatch.setattr(sim, "MAX_STEPS", SHORT)
     pol = str(tmp_path / "policy.pt")
