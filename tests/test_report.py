@@ -155,3 +155,16 @@ def test_the_readme_contexts_table_gives_each_background_its_mean_and_worst_seed
     cells = readme.read_text().splitlines()[4].split(" | ")
     assert cells[0] == "| peg, task attention" and cells[1] == "2" and cells[2] == "0.90 (0.80)"
     assert cells[3] == "0.95-0.95 / 0.90-0.90" and cells[6] == "0.30 (0.20)"      # training, the places, bg-light
+
+
+def test_the_orders_sentence_says_it_holds_only_where_each_interval_lies_above_the_next():
+    paper = lambda **srs: {k + report.PAPER_CRITICS: np.array(v) for k, v in srs.items()}   # noqa: E731
+    apart = paper(ours=[0.9, 0.95, 1.0], keypoint=[0.6, 0.65, 0.7], visual=[0.0, 0.05, 0.1], vanilla=[0.0, 0.0, 0.1])
+    assert report.ordering_sentence(apart).endswith("under its own critics: it holds.")
+    overlap = dict(apart, **paper(keypoint=[0.6, 0.65, 0.95]))
+    said = report.ordering_sentence(overlap)
+    assert "not shown" in said and "ours is above keypoint RL on the mean only" in said
+    assert report.ORDERING.fullmatch(said)                    # the README's pattern takes the whole of it
+    below = {k: v for k, v in paper(ours=[0.3, 0.4], keypoint=[0.5, 0.6]).items()}
+    said = report.ordering_sentence(below)
+    assert "ours is not above keypoint RL" in said and "visual RL and vanilla RL are not run yet" in said

@@ -556,7 +556,7 @@ def write_report(patterns, out_dir="docs", log=print, readme=None):
         rows = [row for r in done for row in r["eval"]["rows"] if row["error_mm"] == 20.0]
         if done or not name.endswith(PAPER_CRITICS):      # a row with the paper's critics: only where it was run
             table1.append((name, rows, ", ".join(str(r["cfg"]["seed"]) for r in done)))
-    readme_rows = []
+    readme_rows, srs = [], {}
     for name, rows, seeds in table1:
         base = name[:-len(PAPER_CRITICS)] if name.endswith(PAPER_CRITICS) else name
         label = TABLE1_ROWS[base] + (", the paper's critics" if base != name else "")
@@ -568,6 +568,7 @@ def write_report(patterns, out_dir="docs", log=print, readme=None):
             continue
         over = lambda k: np.array([x[k][0] for x in rows if x[k]])     # noqa: E731  (each seed's mean)
         sr, ct = np.array([x["success_rate"] for x in rows]), over("completion_time_s")
+        srs[name] = sr
         ct_cell = cell(rows[0], "completion_time_s") if len(rows) == 1 else ci(ct) + (
             f" ({len(ct)} seeds)" if 0 < len(ct) < len(rows) else "")
         fx = " / ".join(f"{over(f'contact_force_{a}_N').mean():.2f}" for a in "xyz")
@@ -576,10 +577,10 @@ def write_report(patterns, out_dir="docs", log=print, readme=None):
         so_far = f" ({len(rows)} seed{'s' * (len(rows) > 1)} so far)" if len(rows) < 3 and name != "two-step" else ""
         readme_rows.append(f"| {label} | {critics} | {ci(sr)}{so_far} | {ct_cell} | {paper_sr_ct(paper)} |")
     if readme:
-        write_readme_sentences(readme, log)
+        write_readme_sentences(readme, log, srs)
         write_readme_table(readme, README_TABLE1, ["| method | critics | SR | CT (s) | paper: SR, CT (s) |",
                                                    "|---|---|---|---|---|", *readme_rows], log)
-    md += note(notes, "Table 1") + sb3_section()
+    md += ["", ordering_sentence(srs)] + note(notes, "Table 1") + sb3_section()
     # -- Table 2: ours, trained as the quickstart trains, in the training context and two unseen ones
     md += ["", "## Table 2: our policy in the training context and two unseen ones", "",
            "Ours trained as the quickstart trains (stopped when learned), tested at another two places of the board, "
@@ -803,6 +804,36 @@ QUICKSTART_RUNS = f"{RESULTS_DIR}/speed/onepass-s*"    # the quickstart's refere
 QUICKSTART = re.compile(r"seeds\s+\d+-\d+\s+stopped\s+after\s.*?\sat\s+20\s+mm", re.S)   # its README sentence
 
 
+ORDERING = re.compile(r"Under\s+the\s+paper's\s+critics,.*?under\s+its\s+own\s+critics:.*?\.(?=\s|$)", re.S)  # README
+
+
+def ordering_sentence(srs):
+    """Whether the paper's Table 1 order (ours above keypoint RL, both above visual and vanilla RL, which did not
+    learn) holds among the rows with the paper's critics; srs: Table 1's row name -> its seeds' SR at 20 mm. One
+    row is above another where its interval lies wholly above the other's."""
+    have = [n for n in ("ours", "keypoint", "visual", "vanilla") if n + PAPER_CRITICS in srs]
+    if not have:
+        return ("Under the paper's critics, no row of Table 1 is run in this world. The paper's order under its own "
+                "critics: not known.")
+    stats = {n: mean_ci(srs[n + PAPER_CRITICS]) if len(srs[n + PAPER_CRITICS]) > 1 else
+             [float(srs[n + PAPER_CRITICS][0])] * 3 for n in have}
+    name = lambda n: "ours" if n == "ours" else TABLE1_ROWS[n].split(" (")[0]        # noqa: E731
+    said = ", ".join(f"{name(n)} {ci(srs[n + PAPER_CRITICS])}" + (f" ({len(srs[n + PAPER_CRITICS])} seed"
+                     f"{'s' * (len(srs[n + PAPER_CRITICS]) > 1)} so far)" if len(srs[n + PAPER_CRITICS]) < 3 else "")
+                     for n in have)
+    pairs = [(a, b) for a, b in (("ours", "keypoint"), ("ours", "visual"), ("ours", "vanilla"),
+                                 ("keypoint", "visual"), ("keypoint", "vanilla")) if a in have and b in have]
+    above = [(a, b) for a, b in pairs if stats[a][1] > stats[b][2]]
+    short = [f"{name(a)} is {'above' if stats[a][0] > stats[b][0] else 'not above'} {name(b)} "
+             f"{'on the mean only (their intervals overlap)' if stats[a][0] > stats[b][0] else 'even on the mean'}"
+             for a, b in pairs if (a, b) not in above]
+    missing = [name(n) for n in ("ours", "keypoint", "visual", "vanilla") if n not in have]
+    verdict = ("it holds" if not short and not missing else "not shown, as " + "; ".join(
+        short + ([f"{' and '.join(missing)} {'is' if len(missing) == 1 else 'are'} not run yet"] if missing else [])))
+    return (f"Under the paper's critics, SR at 20 mm (mean over seeds, 95 % interval): {said}. The paper's order, ours "
+            f"above keypoint RL and both above visual and vanilla RL, under its own critics: {verdict}.")
+
+
 def quickstart_sentence():
     """The README's sentence of what the quickstart's command gives, from its archived reference runs."""
     runs = sorted((load_run(d) for d in match_runs(QUICKSTART_RUNS)), key=lambda r: r["cfg"]["seed"])
@@ -862,18 +893,20 @@ def sb3_section():
     return md
 
 
-README_SENTENCES = {"the quickstart's sentence": (QUICKSTART, quickstart_sentence),   # what the README says in prose
-                    "the SB3 sentence": (SB3, sb3_sentence)}
+README_SENTENCES = {"the quickstart's sentence": (QUICKSTART, lambda srs: quickstart_sentence()),   # the README's
+                    "the SB3 sentence": (SB3, lambda srs: sb3_sentence()),                      # prose
+                    "the ordering sentence": (ORDERING, ordering_sentence)}
 
 
-def write_readme_sentences(path, log):
-    """The README's generated sentences (README_SENTENCES) made anew from the archived runs."""
+def write_readme_sentences(path, log, srs):
+    """The README's generated sentences (README_SENTENCES) made anew from the archived runs (srs: Table 1's row
+    name -> its seeds' SR at 20 mm)."""
     with open(path) as f:
         text = f.read()
     for name, (pattern, make) in README_SENTENCES.items():
         if not pattern.search(text):
             raise ArgError(f"{path}: {name} is not there (pattern {pattern.pattern!r})")
-        sentence = make()
+        sentence = make(srs)
         text = pattern.sub(lambda _: sentence, text, count=1)
     with open(path, "w") as f:
         f.write(text)
