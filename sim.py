@@ -282,6 +282,7 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
         options = options or {}
         w, ctx = self.world, self._episode_context()
         w.rebuild(ctx)                 # every episode in a fresh world: it depends on its seed only
+        self.scene = ctx               # (this episode's scene, a scene.Context)
         scale = np.array([self.e_r] * 3 + [E_ROT_FINAL * self.e_r / E_R_FINAL])
         e = np.asarray(options["error"], float) if "error" in options else \
             self.np_random.uniform(-1, 1, 4) * scale                                                    # Eq. 13
