@@ -10,7 +10,6 @@ contact force per world axis in each episode (CF, N) and the cumulative reward (
 """
 import os
 import pickle
-import signal
 import socket
 import subprocess
 import sys
@@ -176,12 +175,13 @@ class Worker:
         self.proc = subprocess.Popen([sys.executable, "-c", code, str(there.fileno())], pass_fds=(there.fileno(),),
                                      stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, start_new_session=True)
         there.close()
-        self.sock, self.sender = here, None
+        self.sock, self.sender, self.busy = here, None, False
         self.stream = here.makefile("rwb")
 
     def start(self, env, pi, seeds):
         """Play pi in an env built as `env` is, at its E_r and Ex_r, with these episode seeds (results() gives them)."""
         job = (env.init_kwargs, env.e_r, env.ex_r, pi.file, list(seeds))
+        self.busy = True
         self.sender = threading.Thread(target=self._send, args=(job,))   # (it may still be importing: no waiting here)
         self.sender.start()
 
@@ -196,11 +196,16 @@ class Worker:
         """[play's (success, time, peak force, return)] of the seeds given to start, in their order."""
         self.sender.join()
         try:
-            return pickle.load(self.stream)
+            out = pickle.load(self.stream)
         except (EOFError, OSError):
             raise RuntimeError("the evaluation worker process ended (its error is printed above)") from None
+        self.busy = False
+        return out
 
     def close(self):
+        """End it: at once if it is playing episodes no one will read (an interrupted evaluation)."""
+        if self.busy:
+            self.proc.kill()
         self.stream.close()
         self.sock.close()
         try:
@@ -218,7 +223,6 @@ class Worker:
 def serve(fd):
     """The Worker's process: (env kwargs, E_r, Ex_r, policy file, seeds) -> [play(...) of each seed], until EOF."""
     import torch
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
     torch.set_num_threads(1)                            # one core: the other is the process that sent the work
     stream, env, built = socket.socket(fileno=fd).makefile("rwb"), None, None
     try:
@@ -233,8 +237,12 @@ def serve(fd):
                 env, built = sim.AssemblyEnv(**kwargs), kwargs
             env.set_ranges(e_r, ex_r)
             pi = TrainedPolicy(d)
-            pickle.dump([play(env, pi, s) for s in seeds], stream)
-            stream.flush()
+            out = [play(env, pi, s) for s in seeds]
+            try:
+                pickle.dump(out, stream)
+                stream.flush()
+            except OSError:                             # the process that asked has gone
+                return
     finally:
         if env is not None:
             env.close()
