@@ -570,7 +570,7 @@ def write_report(patterns, out_dir="docs", log=print, readme=None):
         sr, ct = np.array([x["success_rate"] for x in rows]), over("completion_time_s")
         srs[name] = sr
         ct_cell = cell(rows[0], "completion_time_s") if len(rows) == 1 else ci(ct) + (
-            f" ({len(ct)} seeds)" if 0 < len(ct) < len(rows) else "")
+            f" ({len(ct)} seed{'s' * (len(ct) > 1)})" if 0 < len(ct) < len(rows) else "")
         fx = " / ".join(f"{over(f'contact_force_{a}_N').mean():.2f}" for a in "xyz")
         md.append(f"| {label} | {seeds} | {ci(sr)} | {ct_cell} | {fx} | "
                   f"{over('cumulative_reward').mean():.1f} | {paper} |")
