@@ -18,6 +18,7 @@ import time
 
 import cv2
 import numpy as np
+import torch
 
 import policy
 import rundir
@@ -53,11 +54,16 @@ class TrainedPolicy:
         if (d.get("image_encoder", "cnn"), d.get("image_feat", policy.FEAT)) != ("cnn", policy.FEAT):
             raise ValueError(f"its image encoder ({d['image_encoder']}, {d['image_feat']}-d) is the critics study's "
                              "(docs/CRITICS.md names the git tag that reads it)")
-        # (files before 'norm' and 'image_norm': joint, fixed)
-        self.encoder = policy.Encoder(d["obs"], norm=d.get("norm", "joint"), image_norm=d.get("image_norm", "fixed"))
+        # (files before 'norm' and 'image_norm': joint, fixed). The layers' first weights, overwritten at once, are
+        # drawn on a fork of torch's generator: a training run that copies its policy to validate it trains on as if
+        # it had not (tacrl.validate)
+        with torch.random.fork_rng(devices=[]):
+            self.encoder = policy.Encoder(d["obs"], norm=d.get("norm", "joint"),
+                                          image_norm=d.get("image_norm", "fixed"))
+            self.actor = policy.Actor(self.encoder.out_dim)
         self.encoder.to(device).eval()
         self.encoder.load_state_dict(d["encoder"])
-        self.actor = policy.Actor(self.encoder.out_dim).to(device).eval()
+        self.actor.to(device).eval()
         self.actor.load_state_dict(d["actor"])
 
     def __call__(self, obs):

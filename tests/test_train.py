@@ -181,7 +181,9 @@ def test_a_worker_process_plays_every_other_episode_and_the_row_is_the_same(monk
 def test_validation_plays_the_greedy_action_of_the_agent_it_copies():
     cfg = tacrl.parse_args(["--task", "peg", "--threads", "1"])
     sac = tacrl.make_sac(cfg)
+    before = torch.random.get_rng_state()
     pi = evaluate.TrainedPolicy(evaluate.policy_file(sac, {"obs": cfg.obs}))
+    assert torch.equal(torch.random.get_rng_state(), before)     # training goes on as if it had not validated
     with tacrl.make_env(cfg, e_r=0.001) as env:
         obs, _ = env.reset(seed=3)
     assert np.array_equal(pi(obs), sac.act(obs, deterministic=True))
