@@ -800,7 +800,7 @@ def family_section(runs, episodes, jobs, log, readme=None):
 README_FAMILIES = "Held-out scenes drawn from families"      # the README's captions of the tables the report makes
 README_TABLE1 = "Table 1 in today's world"
 README_CONTEXTS = "Trained in `train`, tested in each context"
-QUICKSTART_RUNS = f"{RESULTS_DIR}/speed/onepass-s*"    # the quickstart's reference runs: its command, seeds 0-2
+QUICKSTART_RUNS = f"{RESULTS_DIR}/speed/worker-s*"     # the quickstart's reference runs: its command, seeds 0-2
 QUICKSTART = re.compile(r"seeds\s+\d+-\d+\s+stopped\s+after\s.*?\sat\s+20\s+mm", re.S)   # its README sentence
 
 
