@@ -2,7 +2,6 @@
 against each other and the files they name, before any work; a run directory's default name and config; --eval's
 run; and how torch uses the CPU. It takes the Config class from its caller and imports nothing of tacrl.py.
 """
-import contextlib
 import ctypes
 import importlib
 import json
@@ -247,9 +246,9 @@ def run_evaluation(cfg):
         act = pi if pi is not None else baselines.make(cfg.eval, env)
         if cfg.eval == "two-step":
             print(f"two-step: calibrated the image -> offset map, median error {act.fit_error * 1000:.2f} mm")
-        second_core = pi is not None and cfg.device != "cuda" and cores(cfg) > 1 and cfg.episodes > 1 and not cfg.gui
+        shared = pi is not None and cfg.episodes > 1 and not cfg.gui        # (a worker plays a policy.pt's alone)
         try:                                          # the seeds of eval.json
-            with evaluate.Worker() if second_core else contextlib.nullcontext() as worker:
+            with evaluate.second_core(cores(cfg) if shared else 1, cfg.device) as worker:
                 row = evaluate.evaluate(env, act, cfg.episodes, evaluate.EVAL_SEED + cfg.seed, video, worker=worker)
         finally:
             if video is not None:

@@ -8,6 +8,7 @@ A row holds the success rate (SR), the completion time of the successful episode
 contact force per world axis in each episode (CF, N) and the cumulative reward (CR), each as
 [mean, std] over the episodes. tacrl.py's --eval, the report and the benches evaluate through here.
 """
+import contextlib
 import os
 import pickle
 import socket
@@ -224,6 +225,11 @@ class Worker:
 
     def __exit__(self, *exc):
         self.close()
+
+
+def second_core(cores, device="cpu"):
+    """A Worker where a run may use 2 cores and its policy runs on the CPU; else a context that gives None."""
+    return Worker() if cores > 1 and str(device) in ("cpu", "auto") else contextlib.nullcontext()
 
 
 def serve(fd):

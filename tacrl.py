@@ -13,7 +13,6 @@ The file reads top to bottom: the run's config (every flag, once), Algorithm 1 (
 command line's checks and --eval are command.py's (cli.py: what every command shares). What a run directory
 holds is rundir.py's; several seeds and the paper's experiments at once: tools/sweep.py.
 """
-import contextlib
 import json
 import os
 import signal
@@ -133,8 +132,7 @@ def train(cfg, log=lambda msg: print(msg, flush=True)):
     log(f"config: {asdict(cfg)}")
     log(f"parameters: {sac.parameter_counts()}; {cfg.device}" + (f", {sac.helper.threads} threads an update"
                                                                   if cfg.device == "cpu" else ""))
-    second_core = sac.device == "cpu" and sac.helper.threads > 1            # validation and evaluation on 2 cores
-    with evaluate.Worker() if second_core else contextlib.nullcontext() as worker:
+    with evaluate.second_core(sac.helper.threads, sac.device) as worker:    # validation and evaluation on 2 cores
         try:
             # Lines 7-12, learn the residual TA-MRP
             for ep in range(run.episode, cfg.train_episodes):               # line 8: for n in max-episodes

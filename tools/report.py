@@ -815,12 +815,11 @@ def ordering_sentence(srs):
     if not have:
         return ("Under the paper's critics, no row of Table 1 is run in this world. The paper's order under its own "
                 "critics: not known.")
-    stats = {n: mean_ci(srs[n + PAPER_CRITICS]) if len(srs[n + PAPER_CRITICS]) > 1 else
-             [float(srs[n + PAPER_CRITICS][0])] * 3 for n in have}
+    got = {n: srs[n + PAPER_CRITICS] for n in have}                   # each row's seeds' SR
+    stats = {n: mean_ci(v) if len(v) > 1 else [float(v[0])] * 3 for n, v in got.items()}
     name = lambda n: "ours" if n == "ours" else TABLE1_ROWS[n].split(" (")[0]        # noqa: E731
-    said = ", ".join(f"{name(n)} {ci(srs[n + PAPER_CRITICS])}" + (f" ({len(srs[n + PAPER_CRITICS])} seed"
-                     f"{'s' * (len(srs[n + PAPER_CRITICS]) > 1)} so far)" if len(srs[n + PAPER_CRITICS]) < 3 else "")
-                     for n in have)
+    said = ", ".join(f"{name(n)} {ci(v)}" + (f" ({len(v)} seed{'s' * (len(v) > 1)} so far)" if len(v) < 3 else "")
+                     for n, v in got.items())
     pairs = [(a, b) for a, b in (("ours", "keypoint"), ("ours", "visual"), ("ours", "vanilla"),
                                  ("keypoint", "visual"), ("keypoint", "vanilla")) if a in have and b in have]
     above = [(a, b) for a, b in pairs if stats[a][1] > stats[b][2]]
