@@ -32,8 +32,8 @@ STUDY_DEFAULTS = {"shift": 0, "drq": 1, "critic_extra": False, "next_encoder": "
                   "q_norm": False, "q_dropout": 0.0, "q_heads": 2, "reset": 0, "aux_wrench": 0.0, "aux_recon": 0.0,
                   "aux_curl": 0.0, "enc_lr": 0.0, "image_feat": 6}
 STUDY_MULTIMODAL = {"critic_extra": True, "next_encoder": "online", "fusion_norm": "modality", "q_norm": True}
-RUN_NAME_TAGS = (("clearance_mm", "c"), ("updates", "u"), ("warmup", "w"), ("batch", "b"), ("buffer", "buf"),
-                 ("lr", "lr"), ("gamma", "g"), ("target_entropy", "ent"))   # default_run_dir's tail
+RUN_NAME_TAGS = (("clearance_mm", "c"), ("tilt_deg", "tilt"), ("updates", "u"), ("warmup", "w"), ("batch", "b"),
+                 ("buffer", "buf"), ("lr", "lr"), ("gamma", "g"), ("target_entropy", "ent"))   # default_run_dir's tail
 
 
 def keep_freed_memory():

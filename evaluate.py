@@ -85,12 +85,12 @@ def load_policy(path, device="cpu"):
 
 
 def eval_env(task, act, context="train", roi="task", clearance_mm=0.1, e_r_mm=0.0, gui=False):
-    """The env to evaluate `act` in; a TrainedPolicy's at the Ex_r, ROI and X_i it was trained for, with its
+    """The env to evaluate `act` in; a TrainedPolicy's at the Ex_r, tilt, ROI and X_i it was trained for, with its
     guidance."""
     m = act.meta if isinstance(act, TrainedPolicy) else {}
     return sim.AssemblyEnv(task, context, e_r=e_r_mm / 1000, ex_r=m.get("ex_r"), roi=roi, clearance=clearance_mm / 1000,
                            gui=gui, base_policy=not m.get("vanilla", False), e_r_max=m.get("e_r_max"),
-                           keypoint=m.get("obs") == "ts-ptk")
+                           keypoint=m.get("obs") == "ts-ptk", tilt=m.get("tilt", 0.0))     # (files before tilt: 0)
 
 
 def episode_seed(seed, k):

@@ -49,7 +49,8 @@ E_R_FINAL = 0.020                                   # final error range, m (x, y
 E_ROT_FINAL = 0.1                                   # error about z at the final range, rad
 EX_MIN = 0.002                                      # floor of the exploration range, m (K stays finite)
 EX_ROT = (0.002, 0.002)                             # exploration about x, y, rad: stiff, so a residual torque
-                                                    # cannot tilt the peg enough to jam it (0.05 mm over 25 mm)
+                                                    # cannot tilt the peg enough to jam it (0.05 mm over 25 mm);
+                                                    # an env's `tilt` adds the board tilt it must meet
 TRAJ_TIME = 10.0                                    # tau(t) from X^_i to X^_g takes this long, s
 MASS = np.array([20.0, 20.0, 20.0, 0.4, 0.4, 0.4])  # M of Eq. 5: kg and kg m^2 (see README)
 ZETA = 1.0                                          # damping ratio, B = 2 zeta sqrt(K M)
@@ -194,7 +195,8 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
     base_policy: False removes the hand-designed part (the vanilla baseline, Sec. 5.1.2: "without a base
     policy"): no trajectory, no spring toward X^_i or X^_g and no stiffness from the estimated poses;
     the residual's F_d alone drives a free admittance (K = 0, the fixed damping B_FREE); what stays is
-    the start at X^_i, the observations, the reward and the curriculum's errors; render_mode: None or
+    the start at X^_i, the observations, the reward and the curriculum's errors; tilt: the board tilt (rad) that
+    Eq. 8's range about x and y covers besides EX_ROT (ours: 0, a level board); render_mode: None or
     'rgb_array' (render() is the external camera's view); ft_noise, image_noise: the wrist sensor's noise and
     drift, the camera's shot noise (FT_NOISE, FT_DRIFT, E_PER_DN), on as on a real robot, off for exact tests.
 
@@ -208,7 +210,7 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
 
     def __init__(self, task="peg", context="train", e_r=0.0, ex_r=None, roi="task", clearance=1e-4,
                  gui=False, image=True, base_policy=True, e_r_max=None, render_mode=None, ft_noise=True,
-                 image_noise=True, keypoint=False, randomize=()):
+                 image_noise=True, keypoint=False, randomize=(), tilt=0.0):
         if task not in ("peg", "gear"):
             raise ValueError(f"unknown task {task!r} (peg, gear)")
         ctx = context_of(context, task)                       # ValueError for a name that is none
@@ -221,6 +223,7 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
             raise ValueError(f"unknown render_mode {render_mode!r} (None, 'rgb_array')")
         self.task, self.context, self.roi_name, self.image_on, self.keypoint = task, context, roi, image, keypoint
         self.base_policy, self.render_mode, self.randomize = base_policy, render_mode, tuple(randomize)
+        self.tilt = float(tilt)
         if gymnasium is not None:
             hist = lambda b: spaces.Box(np.tile(-b, (HIST, 1)), np.tile(b, (HIST, 1)), dtype=np.float32)  # noqa: E731
             keypoint_box = spaces.Box(np.float32([-0.5, -0.5, 0, 0]), np.float32([0.5, 0.5, 1, 1]), dtype=np.float32)
@@ -234,7 +237,7 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
         # (what builds the same env elsewhere, without a window: evaluate.Worker)
         self.init_kwargs = dict(task=task, context=context, roi=roi, clearance=clearance, image=image,
                                 base_policy=base_policy, e_r_max=self.e_r_max, ft_noise=ft_noise,
-                                image_noise=image_noise, keypoint=keypoint, randomize=tuple(randomize))
+                                image_noise=image_noise, keypoint=keypoint, randomize=tuple(randomize), tilt=tilt)
         self.set_ranges(e_r, ex_r)
         self.np_random = np.random.default_rng()      # the errors' generator (gymnasium's name for it)
         self.scene_rng = np.random.default_rng(0)     # the scenes' of a family or randomization (not the errors')
@@ -293,7 +296,7 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
         self.x_i_hat = (self.x_i[0] + e_w, R_e @ self.x_i[1])        # Eq. 14
         self.error = e
         ex_rot = max(E_ROT_FINAL * self.ex_r / E_R_FINAL, 0.01)
-        ex = np.array([self.ex_r] * 3 + list(EX_ROT) + [ex_rot])
+        ex = np.array([self.ex_r] * 3 + [r + self.tilt for r in EX_ROT] + [ex_rot])     # Eq. 8's E_r
         # Eq. 6's hand-designed part: tau(t) from X^_i to X^_g and K from Eq. 8-9 (none for the vanilla
         # baseline: a free admittance); step() adds the residual's F_d
         self.controller = ctl.HybridPolicy(self.x_i_hat, self.x_g_hat, ex, F_MAX6, MASS, TRAJ_TIME, ZETA,

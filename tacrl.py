@@ -77,6 +77,8 @@ class Config:
     image_norm: str = train_opt("fixed", "the image's grey levels as the encoder reads them: x / 255 - 0.5 (fixed), or "
                                          "each image standardised by its own mean and spread (image; ours)",
                                 policy.IMAGE_NORMS)
+    tilt_deg: float = train_opt(0.0, "board tilt the stiffness about x and y leaves room for, deg (Eq. 8's range "
+                                      "besides sim.EX_ROT; ours: 1 covers the touch family)", bounds=(0, 10))
     updates: int = train_opt(200, "SAC gradient steps after each episode (Sec. 5.1.1: 200)", bounds=(0, None))
     warmup: int = train_opt(20, "random-action episodes before the first update (the authors' loop: 20)",
                             bounds=(0, None))
@@ -209,7 +211,7 @@ def make_env(cfg, **kw):
     --vanilla) and, for keypoint RL, the keypoint in the observation."""
     return sim.AssemblyEnv(cfg.task, cfg.context, roi=cfg.roi, clearance=cfg.clearance_mm / 1000,
                            e_r_max=cfg.error_mm / 1000, base_policy=not cfg.vanilla, keypoint=cfg.obs == "ts-ptk",
-                           randomize=cfg.families, **kw)
+                           randomize=cfg.families, tilt=np.radians(cfg.tilt_deg), **kw)
 
 
 def make_sac(cfg, device=None):
@@ -274,7 +276,8 @@ def finish(cfg, sac, curr, e_r_max, seconds, log, worker=None):
     """policy.pt (with what evaluation must know of training), curves.png and eval.json: held-out seeds."""
     policy_path = os.path.join(cfg.run_dir, "policy.pt")
     evaluate.save_policy(policy_path, sac, {"task": cfg.task, "obs": cfg.obs, "roi": cfg.roi, "vanilla": cfg.vanilla,
-                                          "ex_r": float(curr.ranges()[1]), "e_r_max": float(e_r_max)})
+                                          "ex_r": float(curr.ranges()[1]), "e_r_max": float(e_r_max),
+                                          "tilt": float(np.radians(cfg.tilt_deg))})
     rundir.plot_curves(cfg.run_dir, f"{cfg.task}, {cfg.obs}, {cfg.curriculum}")
     pi = evaluate.load_policy(policy_path, sac.device)
     levels = sorted({float(x) for x in cfg.eval_levels.split(",")})

@@ -193,6 +193,21 @@ def test_the_vanilla_baseline_has_no_base_policy_f_d_alone_moves_the_tool():
     assert abs(abs(dx) - expect) < 0.3 * expect, (dx, expect)
 
 
+def test_a_tilt_range_lets_a_full_residual_torque_tilt_the_peg_that_far():
+    """Eq. 8-9 about x and y: W = EX_ROT (+ the env's tilt), so a full residual torque (TAU_MAX / 2) tilts the free
+    tool by W at rest: 0.11 deg held stiff, 1.1 deg with a tilt of 1 deg (the touch family's largest)."""
+    tilted = {}
+    for tilt in (0.0, np.radians(1.0)):
+        with sim.AssemblyEnv("peg", e_r=0.0, image=False, ft_noise=False, tilt=tilt) as env:
+            obs, _ = env.reset(seed=3)                   # X^_i = X_i: the peg 30 mm over the hole, touching nothing
+            for _ in range(5):                           # 1 s, about 6 time constants M / B of the rotation
+                obs, *_ = env.step([0, 0, 0, 1, 0, 0])
+            tilted[tilt] = abs(obs["pose_hist"][-1, 3])  # rad, about X^_g's x axis
+            assert np.abs(env.f_tool[:3]).max() < 0.01           # N: in free space
+    assert tilted[0.0] == pytest.approx(sim.EX_ROT[0], rel=0.2)
+    assert tilted[np.radians(1.0)] == pytest.approx(sim.EX_ROT[0] + np.radians(1.0), rel=0.2)
+
+
 @pytest.mark.parametrize("action", [np.full(6, np.nan), [0, 0, np.inf, 0, 0, 0], np.zeros(5), np.zeros((2, 6)),
                                     "abcdef", None, [[0] * 6]])
 def test_step_refuses_an_action_that_is_not_6_finite_numbers(action, peg_env):

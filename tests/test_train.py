@@ -195,8 +195,12 @@ def test_a_policy_is_evaluated_with_the_exploration_range_it_trained_with(tiny_r
     d = torch.load(os.path.join(tiny_run["dir"], "policy.pt"), weights_only=True)
     assert d["ex_r"] <= 0.002 and tiny_run["eval"]["rows"][0]["ex_r_mm"] == 2.0     # where it ended, floored at 2 mm
     assert d["e_r_max"] == 0.02              # and the env it saw: ROI and X_i for 20 mm, the least there is
+    assert d["tilt"] == 0.0                  # a level board's stiffness about x and y (no --tilt-deg)
     d["ex_r"] = 0.015                        # as if it had ended at 15 mm: evaluated at 0 mm, Ex_r stays 15
+    d["tilt"] = 0.01                         # and trained with room for a tilted board: evaluated with it
     torch.save(d, pol)
+    with evaluate.eval_env("peg", evaluate.load_policy(pol)) as env:
+        assert env.tilt == 0.01
     out = tmp_path / "row.json"
     assert tacrl.main(["--task", "peg", "--eval", pol, "--error-mm", "0", "--episodes", "1", "--json", str(out)]) == 0
     assert "TA-MRP peg 0mm" in capsys.readouterr().out
