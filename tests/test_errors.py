@@ -210,7 +210,8 @@ def test_the_objects_and_touch_studies_refuse_mistakes_in_one_line(tmp_path, cap
              (objects, ["--docs", str(tmp_path), "--out", str(tmp_path / "empty")]),
              (touch, [str(tmp_path / "none")]), (touch, [str(tmp_path), "--episodes", "0"]),
              (touch, ["initial", "--error-mm", "0"]), (touch, ["initial", "--held-out", "--error-mm", "25"]),
-             (touch, [str(tmp_path), "--held-out", "--task", "gear"]))
+             (touch, [str(tmp_path), "--held-out", "--task", "gear"]), (touch, ["initial", "--family", "colour"]),
+             (touch, ["initial", "--held-out", "--family", "paint"]))
     for mod, argv in cases:
         assert cli.command(mod.__name__, lambda: mod.main(argv)) == 2, argv
         err = capsys.readouterr().err

@@ -2,11 +2,13 @@
 scenes that each change one thing the part touches to an end of the family's range, the rest as in training;
 or (--held-out) the family's held-out episodes one by one, each scene's friction, clearance and tilt beside its
 outcome, at any error (0 mm: the pose known, so what is lost is lost in contact), for a run or for the
-hand-designed part alone (`initial`).
+hand-designed part alone (`initial`); --family F lists another family's episodes so (colour: the board's and the
+table's grey level beside each).
 
     python tools/touch.py results/contexts/peg-task-s0 --episodes 20      # -> one line a scene, and touch.json
     python tools/touch.py RUN --held-out --error-mm 0              # -> one line an episode, touch-heldout-0mm.json
     python tools/touch.py initial --held-out --error-mm 0 --task peg   # the hand-designed part (prints only)
+    python tools/touch.py RUN --held-out --family colour          # -> colour-heldout-20mm.json
 """
 import json
 import os
@@ -39,8 +41,13 @@ SCENES = {"training": scene.Context(),
           "tilted 1 deg about y": scene.Context(tilt=(0.0, T))}
 
 
+def grey(rgba):
+    """An rgba's luma (Rec. 601), 0-1: what a grey camera makes of it under white light."""
+    return float(np.dot(rgba[:3], (0.299, 0.587, 0.114)))
+
+
 def held_out(a):
-    """--held-out: touch:test's episodes one by one (the seeds of evaluation's, EVAL_SEED + the run's seed)."""
+    """--held-out: FAMILY:test's episodes one by one (the seeds of evaluation's, EVAL_SEED + the run's seed)."""
     if a.run == "initial":
         task, roi, seed, pi = a.task, "task", 0, None
     else:
@@ -49,21 +56,25 @@ def held_out(a):
         if a.error_mm > pi.meta["e_r_max"] * 1000 + 1e-6:
             raise ArgError(f"--error-mm {a.error_mm:g}: this policy's view covers {pi.meta['e_r_max'] * 1000:g} mm")
     rows = []
-    with evaluate.eval_env(task, pi, "touch:test", roi, e_r_mm=a.error_mm) as env:
+    with evaluate.eval_env(task, pi, f"{a.family}:test", roi, e_r_mm=a.error_mm) as env:
         act = pi or baselines.make("initial", env)
         for k in range(a.episodes):
             term, info, _ = sim.run_episode(env, act, seed=evaluate.episode_seed(evaluate.EVAL_SEED + seed, k))
             c = env.scene
             rows.append({"success": bool(term), "friction": c.friction, "clearance_mm": c.clearance * 1000,
-                         "tilt_deg": [float(np.degrees(t)) for t in c.tilt], "depth_mm": info["depth"] * 1000})
-            print(f"episode {k + 1:2d}  {'inserted' if term else 'failed  '}  friction {c.friction:.2f}  clearance "
-                  f"{c.clearance * 1000:.3f} mm  tilt {np.degrees(c.tilt[0]):+.2f} / {np.degrees(c.tilt[1]):+.2f} deg "
-                  f"(x / y)  depth {info['depth'] * 1000:5.1f} mm", flush=True)
+                         "tilt_deg": [float(np.degrees(t)) for t in c.tilt], "board_grey": grey(c.board_rgba),
+                         "table_grey": grey(c.table_rgba), "objects": len(c.objects), "depth_mm": info["depth"] * 1000})
+            what = (f"board grey {grey(c.board_rgba):.2f}  table grey {grey(c.table_rgba):.2f}  objects "
+                    f"{len(c.objects)}" if a.family != "touch" else
+                    f"friction {c.friction:.2f}  clearance {c.clearance * 1000:.3f} mm  tilt "
+                    f"{np.degrees(c.tilt[0]):+.2f} / {np.degrees(c.tilt[1]):+.2f} deg (x / y)")
+            print(f"episode {k + 1:2d}  {'inserted' if term else 'failed  '}  {what}  depth "
+                  f"{info['depth'] * 1000:5.1f} mm", flush=True)
     sr = np.mean([r["success"] for r in rows])
-    print(f"{a.run}: SR {sr:.2f} at {a.error_mm:g} mm in touch:test ({a.episodes} episodes)")
+    print(f"{a.run}: SR {sr:.2f} at {a.error_mm:g} mm in {a.family}:test ({a.episodes} episodes)")
     if pi is not None:
         cli.check_dir_writable(a.run, "the run dir")
-        with open(os.path.join(a.run, f"touch-heldout-{a.error_mm:g}mm.json"), "w") as f:
+        with open(os.path.join(a.run, f"{a.family}-heldout-{a.error_mm:g}mm.json"), "w") as f:
             json.dump({"world": sim.WORLD, "error_mm": a.error_mm, "sr": float(sr), "episodes": rows}, f, indent=1)
 
 
@@ -73,15 +84,16 @@ def main(argv=None):
     ap.add_argument("--episodes", type=int, default=20, help="held-out episodes a scene (default: 20)")
     ap.add_argument("--held-out", action="store_true", help="touch:test's episodes one by one, each scene beside it")
     ap.add_argument("--error-mm", type=float, help="with --held-out: the error range E_r (default: 20)")
+    ap.add_argument("--family", choices=contexts.FAMILIES, help="with --held-out: the family (default: touch)")
     ap.add_argument("--task", choices=("peg", "gear"), help="with initial: the task (default: peg)")
     a = ap.parse_args(argv)
     if a.episodes < 1:
         raise ArgError(f"--episodes must be at least 1, not {a.episodes}")
-    if not a.held_out and (a.error_mm is not None or a.task is not None):
-        raise ArgError("--error-mm and --task are for --held-out: they would change nothing here")
+    if not a.held_out and (a.error_mm is not None or a.task is not None or a.family is not None):
+        raise ArgError("--error-mm, --task and --family are for --held-out: they would change nothing here")
     if a.task is not None and a.run != "initial":
         raise ArgError("--task is for initial: a run's policy has its own")
-    a.error_mm, a.task = 20.0 if a.error_mm is None else a.error_mm, a.task or "peg"
+    a.error_mm, a.task, a.family = 20.0 if a.error_mm is None else a.error_mm, a.task or "peg", a.family or "touch"
     if not 0 <= a.error_mm <= 20:
         raise ArgError(f"--error-mm must be in 0..20, not {a.error_mm:g}")
     command.use_cpu()
