@@ -61,13 +61,16 @@ def held_out(a):
         for k in range(a.episodes):
             term, info, _ = sim.run_episode(env, act, seed=evaluate.episode_seed(evaluate.EVAL_SEED + seed, k))
             c = env.scene
-            rows.append({"success": bool(term), "friction": c.friction, "clearance_mm": c.clearance * 1000,
-                         "tilt_deg": [float(np.degrees(t)) for t in c.tilt], "board_grey": grey(c.board_rgba),
-                         "table_grey": grey(c.table_rgba), "objects": len(c.objects), "depth_mm": info["depth"] * 1000})
-            what = (f"board grey {grey(c.board_rgba):.2f}  table grey {grey(c.table_rgba):.2f}  objects "
-                    f"{len(c.objects)}" if a.family != "touch" else
-                    f"friction {c.friction:.2f}  clearance {c.clearance * 1000:.3f} mm  tilt "
-                    f"{np.degrees(c.tilt[0]):+.2f} / {np.degrees(c.tilt[1]):+.2f} deg (x / y)")
+            if a.family == "touch":
+                seen = {"friction": c.friction, "clearance_mm": c.clearance * 1000,
+                        "tilt_deg": [float(np.degrees(t)) for t in c.tilt]}
+                what = (f"friction {c.friction:.2f}  clearance {c.clearance * 1000:.3f} mm  tilt "
+                        f"{np.degrees(c.tilt[0]):+.2f} / {np.degrees(c.tilt[1]):+.2f} deg (x / y)")
+            else:
+                seen = {"board_grey": grey(c.board_rgba), "table_grey": grey(c.table_rgba), "objects": len(c.objects)}
+                what = "  ".join(f"{k.replace('_', ' ')} {v:.2f}" if isinstance(v, float) else f"{k} {v}"
+                                 for k, v in seen.items())
+            rows.append({"success": bool(term), **seen, "depth_mm": info["depth"] * 1000})
             print(f"episode {k + 1:2d}  {'inserted' if term else 'failed  '}  {what}  depth "
                   f"{info['depth'] * 1000:5.1f} mm", flush=True)
     sr = np.mean([r["success"] for r in rows])
