@@ -72,6 +72,7 @@ POLICY_HZ, CONTROL_HZ, PHYSICS_HZ = 5, 120, 240
 CONTROL_PER_POLICY = CONTROL_HZ // POLICY_HZ        # 24 controller ticks per action
 PHYSICS_PER_CONTROL = PHYSICS_HZ // CONTROL_HZ      # 2 physics steps per controller tick
 IMG = 80                                            # the policy's image is IMG x IMG gray
+LUMA = (0.299, 0.587, 0.114)                        # Rec. 601: the gray camera's weights of R, G, B
 # The wrist sensor saturates at its measuring range: Robotiq FT 300, a sensor made for UR arms,
 # +-300 N and +-30 N m (Robotiq's FT 300 instruction manual, 2018-12-18 edition, specifications;
 # assets.robotiq.com/website-assets/support_documents/document/FT_Sensor_Instruction_Manual_PDF_20181218.pdf.
@@ -551,7 +552,7 @@ class World:
         img = self.bc.getCameraImage(size, size, view.T.flatten().tolist(), proj, renderer=p.ER_TINY_RENDERER,
                                      flags=p.ER_NO_SEGMENTATION_MASK, **dict(self.context.light))[2]
         rgb = np.asarray(img, np.uint8).reshape(size, size, 4)[:, :, :3].astype(np.float32)
-        gray = rgb @ np.array([0.299, 0.587, 0.114], np.float32)
+        gray = rgb @ np.array(LUMA, np.float32)
         if self.image_noise:            # shot noise (E_PER_DN), then the 8-bit quantization
             gray = gray + np.sqrt(gray / E_PER_DN) * self.noise_rng.standard_normal(gray.shape).astype(np.float32)
             return np.clip(np.rint(gray), 0, 255).astype(np.uint8)

@@ -110,6 +110,11 @@ class Config:
         """--randomize's families, a tuple."""
         return tuple(f for f in self.randomize.split(",") if f)
 
+    @property
+    def tilt(self):
+        """--tilt-deg in rad, as the env and policy.pt take it."""
+        return float(np.radians(self.tilt_deg))
+
 
 POSE_SCALE = np.array([sim.E_R_FINAL] * 3 + [sim.E_ROT_FINAL] * 3)   # m, rad: the encoders' pose units
 STATE_DIM = 7                                                        # what privileged critics read (critic_state)
@@ -211,7 +216,7 @@ def make_env(cfg, **kw):
     --vanilla) and, for keypoint RL, the keypoint in the observation."""
     return sim.AssemblyEnv(cfg.task, cfg.context, roi=cfg.roi, clearance=cfg.clearance_mm / 1000,
                            e_r_max=cfg.error_mm / 1000, base_policy=not cfg.vanilla, keypoint=cfg.obs == "ts-ptk",
-                           randomize=cfg.families, tilt=np.radians(cfg.tilt_deg), **kw)
+                           randomize=cfg.families, tilt=cfg.tilt, **kw)
 
 
 def make_sac(cfg, device=None):
@@ -277,7 +282,7 @@ def finish(cfg, sac, curr, e_r_max, seconds, log, worker=None):
     policy_path = os.path.join(cfg.run_dir, "policy.pt")
     evaluate.save_policy(policy_path, sac, {"task": cfg.task, "obs": cfg.obs, "roi": cfg.roi, "vanilla": cfg.vanilla,
                                           "ex_r": float(curr.ranges()[1]), "e_r_max": float(e_r_max),
-                                          "tilt": float(np.radians(cfg.tilt_deg))})
+                                          "tilt": cfg.tilt})
     rundir.plot_curves(cfg.run_dir, f"{cfg.task}, {cfg.obs}, {cfg.curriculum}")
     pi = evaluate.load_policy(policy_path, sac.device)
     levels = sorted({float(x) for x in cfg.eval_levels.split(",")})

@@ -42,8 +42,8 @@ SCENES = {"training": scene.Context(),
 
 
 def grey(rgba):
-    """An rgba's luma (Rec. 601), 0-1: what a grey camera makes of it under white light."""
-    return float(np.dot(rgba[:3], (0.299, 0.587, 0.114)))
+    """An rgba's luma, 0-1: what the gray camera (scene.LUMA) makes of it under white light."""
+    return float(np.dot(rgba[:3], scene.LUMA))
 
 
 def held_out(a):
