@@ -42,17 +42,26 @@ def mlp(n_in, n_out, hidden=(256, 256), norm=False):
 
 
 # ---------------------------------------------------------------- the multimodal encoder
-IMAGE_NORMS = ("fixed", "image")
+IMAGE_NORMS = ("fixed", "image", "local")
+LOCAL = 9                     # the local norm's window, px of the 80 px ROI (Jarrett et al. 2009: 9 x 9)
 
 
 def pixels(img, norm="fixed"):
     """(B, 1, 80, 80) uint8 -> float: x / 255 - 0.5 (fixed), or (image, ours) each image minus its
     mean over its standard deviation (+ one grey level, for a flat image), so that light or paint that scales and
     shifts the grey levels leaves the input as it was: the normalisation of normalised cross-correlation, a classic
-    of template matching under changing light (e.g. Lewis 1995)."""
+    of template matching under changing light (e.g. Lewis 1995); or (local, ours) each pixel minus the mean of its
+    LOCAL x LOCAL window over that window's spread, floored at the image's mean spread: local contrast
+    normalisation (Jarrett et al. 2009), so that a faint edge (a dark shaft on a dark board) is not drowned by a
+    bright part elsewhere in the image."""
     x = img.float() / 255.0
     if norm == "image":
         return (x - x.mean((2, 3), keepdim=True)) / (x.std((2, 3), keepdim=True) + 1 / 255)
+    if norm == "local":
+        blur = lambda t: F.avg_pool2d(t, LOCAL, 1, LOCAL // 2, count_include_pad=False)   # noqa: E731
+        v = x - blur(x)
+        s = blur(v * v).sqrt()
+        return v / torch.maximum(s, s.mean((2, 3), keepdim=True) + 1 / 255)
     return x - 0.5
 
 
