@@ -211,7 +211,9 @@ def test_the_objects_and_touch_studies_refuse_mistakes_in_one_line(tmp_path, cap
              (touch, [str(tmp_path / "none")]), (touch, [str(tmp_path), "--episodes", "0"]),
              (touch, ["initial", "--error-mm", "0"]), (touch, ["initial", "--held-out", "--error-mm", "25"]),
              (touch, [str(tmp_path), "--held-out", "--task", "gear"]), (touch, ["initial", "--family", "colour"]),
-             (touch, ["initial", "--held-out", "--family", "paint"]))
+             (touch, ["initial", "--held-out", "--family", "paint"]),
+             (touch, [str(tmp_path), "--views", str(tmp_path)]),
+             (touch, ["initial", "--held-out", "--views", str(tmp_path)]))
     for mod, argv in cases:
         assert cli.command(mod.__name__, lambda: mod.main(argv)) == 2, argv
         err = capsys.readouterr().err

@@ -98,6 +98,24 @@ def plot_views(task, rois, contexts, out, error=(0.015, -0.010, 0.0, 0.05)):
     plt.close(fig)
 
 
+def plot_inputs(rows, titles, out, title):
+    """What the encoder reads: rows {label: (N, 80, 80) float}, one image an episode (columns, titled by
+    `titles`), each row on its own grey scale from its 1st to its 99th percentile."""
+    fig, ax = plt.subplots(len(rows), len(titles), figsize=(1.6 * len(titles), 1.75 * len(rows)), squeeze=False)
+    for i, (label, imgs) in enumerate(rows.items()):
+        lo, hi = np.percentile(imgs, (1, 99))
+        for j, img in enumerate(imgs):
+            ax[i, j].imshow(img, cmap="gray", vmin=lo, vmax=hi)
+            ax[i, j].set_xticks([])
+            ax[i, j].set_yticks([])
+            ax[i, j].set_title(titles[j] if i == 0 else "", fontsize=7)
+        ax[i, 0].set_ylabel(label, fontsize=8)
+    fig.suptitle(title, fontsize=9)
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+
+
 def plot_behaviour(rec, out, title):
     """Fig. 16: one episode, observations and actions scaled to [-1, 1] per channel, over its phases.
     rec: per policy step, 'image' (T, 80, 80) and its 'saliency' (T, 80, 80), 'image_features' (T, 6),

@@ -9,6 +9,7 @@ table's grey level beside each).
     python tools/touch.py RUN --held-out --error-mm 0              # -> one line an episode, touch-heldout-0mm.json
     python tools/touch.py initial --held-out --error-mm 0 --task peg   # the hand-designed part (prints only)
     python tools/touch.py RUN --held-out --family colour          # -> colour-heldout-20mm.json
+    python tools/touch.py RUN --held-out --family colour --views docs   # and docs/TASK-colour-heldout-views.png
 """
 import json
 import os
@@ -19,6 +20,7 @@ if __name__ == "__main__":     # Ctrl-C while torch and pybullet load: one line 
     signal.signal(signal.SIGINT, lambda *_: (sys.stderr.write("\ntouch: interrupted\n"), os._exit(130)))
 
 import numpy as np  # noqa: E402
+import torch  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))   # the core modules, one folder up
 import baselines  # noqa: E402
@@ -26,6 +28,8 @@ import cli  # noqa: E402
 import command  # noqa: E402
 import contexts  # noqa: E402
 import evaluate  # noqa: E402
+import figures  # noqa: E402
+import policy  # noqa: E402
 import report  # noqa: E402
 import scene  # noqa: E402
 import sim  # noqa: E402
@@ -79,6 +83,27 @@ def held_out(a):
         cli.check_dir_writable(a.run, "the run dir")
         with open(os.path.join(a.run, f"{a.family}-heldout-{a.error_mm:g}mm.json"), "w") as f:
             json.dump({"world": sim.WORLD, "error_mm": a.error_mm, "sr": float(sr), "episodes": rows}, f, indent=1)
+    if a.views:
+        views(a, task, roi, seed, pi, rows)
+
+
+def views(a, task, roi, seed, pi, rows, n=10):
+    """--views DIR: the first image of the first n episodes as the camera gives it and as each of policy.IMAGE_NORMS
+    hands it to the CNN, each episode's outcome above it -> DIR/{task}-{family}-heldout-views.png."""
+    imgs = []
+    with evaluate.eval_env(task, pi, f"{a.family}:test", roi, e_r_mm=a.error_mm) as env:
+        for k in range(min(n, len(rows))):       # the same seed, so the same scene, pose and noise as the episode's
+            imgs.append(env.reset(seed=evaluate.episode_seed(evaluate.EVAL_SEED + seed, k))[0]["image"])
+    x = torch.as_tensor(np.stack(imgs))                                     # (n, 1, 80, 80) uint8
+    shown = {"camera": x[:, 0].numpy().astype(np.float32)}
+    shown.update({f"--image-norm {m}": policy.pixels(x, m)[:, 0].numpy() for m in policy.IMAGE_NORMS if m != "fixed"})
+    titles = [f"{'in' if r['success'] else 'FAILED'}" + (f", board {r['board_grey']:.2f}" if "board_grey" in r else "")
+              for r in rows[:len(imgs)]]
+    cli.check_dir_writable(a.views, "--views")
+    out = os.path.join(a.views, f"{task}-{a.family}-heldout-views.png")
+    figures.plot_inputs(shown, titles, out, f"{task}, {a.family}:test at {a.error_mm:g} mm ({a.run}): the first image "
+                                            "of each episode as the CNN reads it")
+    print(f"wrote {out}")
 
 
 def main(argv=None):
@@ -89,11 +114,15 @@ def main(argv=None):
     ap.add_argument("--error-mm", type=float, help="with --held-out: the error range E_r (default: 20)")
     ap.add_argument("--family", choices=contexts.FAMILIES, help="with --held-out: the family (default: touch)")
     ap.add_argument("--task", choices=("peg", "gear"), help="with initial: the task (default: peg)")
+    ap.add_argument("--views", metavar="DIR", help="with --held-out and a run: also draw the first 10 episodes' "
+                                                 "images as each image norm reads them into DIR")
     a = ap.parse_args(argv)
     if a.episodes < 1:
         raise ArgError(f"--episodes must be at least 1, not {a.episodes}")
-    if not a.held_out and (a.error_mm is not None or a.task is not None or a.family is not None):
-        raise ArgError("--error-mm, --task and --family are for --held-out: they would change nothing here")
+    if not a.held_out and (a.error_mm is not None or a.task is not None or a.family is not None or a.views):
+        raise ArgError("--error-mm, --task, --family and --views are for --held-out: they would change nothing here")
+    if a.views and a.run == "initial":
+        raise ArgError("--views draws what a run's encoder reads: initial has none")
     if a.task is not None and a.run != "initial":
         raise ArgError("--task is for initial: a run's policy has its own")
     a.error_mm, a.task, a.family = 20.0 if a.error_mm is None else a.error_mm, a.task or "peg", a.family or "touch"
