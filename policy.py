@@ -58,11 +58,22 @@ def pixels(img, norm="fixed"):
     if norm == "image":
         return (x - x.mean((2, 3), keepdim=True)) / (x.std((2, 3), keepdim=True) + 1 / 255)
     if norm == "local":
-        blur = lambda t: F.avg_pool2d(t, LOCAL, 1, LOCAL // 2, count_include_pad=False)   # noqa: E731
-        v = x - blur(x)
-        s = blur(v * v).sqrt()
+        v = x - box_mean(x)
+        s = box_mean(v * v).sqrt()
         return v / torch.maximum(s, s.mean((2, 3), keepdim=True) + 1 / 255)
     return x - 0.5
+
+
+def box_mean(x, k=LOCAL):
+    """(B, C, H, W) -> each pixel's mean over its k x k window, within the image, from an integral image (Viola and
+    Jones 2001): four look-ups a pixel, where pooling sums k^2 and made an update 2.5 times slower. In float64, so
+    that the differences of large sums stay exact to float32."""
+    h, w = x.shape[2:]
+    c = F.pad(x.double(), (k // 2 + 1, k // 2, k // 2 + 1, k // 2)).cumsum(2).cumsum(3)   # a zero row and column first
+    box = lambda c: c[..., k:, k:] - c[..., :-k, k:] - c[..., k:, :-k] + c[..., :-k, :-k]   # noqa: E731
+    n = box(F.pad(x.new_ones(1, 1, h, w, dtype=torch.float64), (k // 2 + 1, k // 2, k // 2 + 1, k // 2))
+            .cumsum(2).cumsum(3))                                                    # the pixels each window holds
+    return (box(c) / n).clamp_min(0).to(x.dtype)
 
 
 class ImageEncoder(nn.Module):

@@ -10,6 +10,7 @@ import sys
 import numpy as np
 import pytest
 import torch
+import torch.nn.functional as F
 
 import policy
 
@@ -296,3 +297,10 @@ def test_the_local_norm_lifts_a_dark_shaft_on_a_dark_board():
         shaft, bright = y[44:68, 24:46], y[0:36, 14:66]
         ratio[norm] = float((shaft - shaft.median()).abs().max() / (bright - y[40, 10]).abs().max())
     assert ratio["image"] < 0.2 and ratio["local"] > 0.5, ratio
+
+
+def test_the_box_mean_is_the_mean_of_each_window_within_the_image():
+    x = torch.rand(3, 2, 80, 61)
+    for k in (1, 3, 9):
+        want = F.avg_pool2d(x, k, 1, k // 2, count_include_pad=False)
+        assert torch.allclose(policy.box_mean(x, k), want, atol=1e-6), k
