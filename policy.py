@@ -68,12 +68,11 @@ def box_mean(x, k=LOCAL):
     """(B, C, H, W) -> each pixel's mean over its k x k window, within the image, from an integral image (Viola and
     Jones 2001): four look-ups a pixel, where pooling sums k^2 and made an update 2.5 times slower. In float64, so
     that the differences of large sums stay exact to float32."""
-    h, w = x.shape[2:]
-    c = F.pad(x.double(), (k // 2 + 1, k // 2, k // 2 + 1, k // 2)).cumsum(2).cumsum(3)   # a zero row and column first
-    box = lambda c: c[..., k:, k:] - c[..., :-k, k:] - c[..., k:, :-k] + c[..., :-k, :-k]   # noqa: E731
-    n = box(F.pad(x.new_ones(1, 1, h, w, dtype=torch.float64), (k // 2 + 1, k // 2, k // 2 + 1, k // 2))
-            .cumsum(2).cumsum(3))                                                    # the pixels each window holds
-    return (box(c) / n).clamp_min(0).to(x.dtype)
+    def box(t):                # each window's sum, from t's integral image (a zero row and column first)
+        c = F.pad(t.double(), (k // 2 + 1, k // 2) * 2).cumsum(2).cumsum(3)
+        return c[..., k:, k:] - c[..., :-k, k:] - c[..., k:, :-k] + c[..., :-k, :-k]
+    n = box(x.new_ones(1, 1, *x.shape[2:]))                     # the pixels each window holds
+    return (box(x) / n).clamp_min(0).to(x.dtype)
 
 
 class ImageEncoder(nn.Module):
