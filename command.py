@@ -26,7 +26,7 @@ NOT_LEARNING = ("eval", "resume", "run_dir", "track", "threads", "device", "gui"
 # The critics study's flags (issues 31 and 50; docs/CRITICS.md) and their defaults, retired to the git tag
 # STUDY_TAG. A run dir written before reads on where they have the values under which it computes what today's
 # code does: these, and for --critic multimodal, STUDY_MULTIMODAL (the setting that learned best, today's).
-STUDY_TAG = "critics-study"
+STUDY_TAG = "critics-study (612813e)"
 STUDY_DEFAULTS = {"shift": 0, "drq": 1, "critic_extra": False, "next_encoder": "target", "nstep": 1, "aux_reward": 0.0,
                   "aux_offset": 0.0, "actor_encoder": "shared", "fusion_norm": "joint", "image_encoder": "cnn",
                   "q_norm": False, "q_dropout": 0.0, "q_heads": 2, "reset": 0, "aux_wrench": 0.0, "aux_recon": 0.0,

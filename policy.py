@@ -42,37 +42,19 @@ def mlp(n_in, n_out, hidden=(256, 256), norm=False):
 
 
 # ---------------------------------------------------------------- the multimodal encoder
-IMAGE_NORMS = ("fixed", "image", "local")
-LOCAL = 9                     # the local norm's window, px of the 80 px ROI (Jarrett et al. 2009: 9 x 9)
+IMAGE_NORMS = ("fixed", "image")
+NORMS_TAG = "image-norm-local (142e412)"   # the local norm's git tag (issue 53: it lost to the image norm)
 
 
 def pixels(img, norm="fixed"):
     """(B, 1, 80, 80) uint8 -> float: x / 255 - 0.5 (fixed), or (image, ours) each image minus its
     mean over its standard deviation (+ one grey level, for a flat image), so that light or paint that scales and
     shifts the grey levels leaves the input as it was: the normalisation of normalised cross-correlation, a classic
-    of template matching under changing light (e.g. Lewis 1995); or (local, ours) each pixel minus the mean of its
-    LOCAL x LOCAL window over that window's spread, floored at the image's mean spread: local contrast
-    normalisation (Jarrett et al. 2009), so that a faint edge (a dark shaft on a dark board) is not drowned by a
-    bright part elsewhere in the image."""
+    of template matching under changing light (e.g. Lewis 1995)."""
     x = img.float() / 255.0
     if norm == "image":
         return (x - x.mean((2, 3), keepdim=True)) / (x.std((2, 3), keepdim=True) + 1 / 255)
-    if norm == "local":
-        v = x - box_mean(x)
-        s = box_mean(v * v).sqrt()
-        return v / torch.maximum(s, s.mean((2, 3), keepdim=True) + 1 / 255)
     return x - 0.5
-
-
-def box_mean(x, k=LOCAL):
-    """(B, C, H, W) -> each pixel's mean over its k x k window, within the image, from an integral image (Viola and
-    Jones 2001): four look-ups a pixel, where pooling sums k^2 and made an update 2.5 times slower. In float64, so
-    that the differences of large sums stay exact to float32."""
-    def box(t):                # each window's sum, from t's integral image (a zero row and column first)
-        c = F.pad(t.double(), (k // 2 + 1, k // 2) * 2).cumsum(2).cumsum(3)
-        return c[..., k:, k:] - c[..., :-k, k:] - c[..., k:, :-k] + c[..., :-k, :-k]
-    n = box(x.new_ones(1, 1, *x.shape[2:]))                     # the pixels each window holds
-    return (box(x) / n).clamp_min(0).to(x.dtype)
 
 
 class ImageEncoder(nn.Module):
@@ -113,7 +95,8 @@ class Encoder(nn.Module):
                  image_norm="fixed"):
         super().__init__()
         if image_norm not in IMAGE_NORMS:
-            raise ValueError(f"unknown image normalisation {image_norm!r} ({', '.join(IMAGE_NORMS)})")
+            raise ValueError(f"unknown image normalisation {image_norm!r} ({', '.join(IMAGE_NORMS)}; others: git tag "
+                             f"{NORMS_TAG})")
         if kind not in OBS_KINDS:
             raise ValueError(f"unknown observation kind {kind!r} ({', '.join(OBS_KINDS)})")
         self.kind, self.norm_kind, self.image_norm = kind, norm, image_norm

@@ -75,8 +75,7 @@ class Config:
     randomize: str = train_opt("", "draw each episode's scene from these families' training scenes, comma-separated "
                                    f"(domain randomization: {', '.join(contexts.FAMILIES)})")
     image_norm: str = train_opt("fixed", "the image's grey levels as the encoder reads them: x / 255 - 0.5 (fixed), or "
-                                         "each image standardised by its own mean and spread (image; ours), or each "
-                                         f"pixel by its {policy.LOCAL} x {policy.LOCAL} neighbourhood's (local; ours)",
+                                         "each image standardised by its own mean and spread (image; ours)",
                                 policy.IMAGE_NORMS)
     tilt_deg: float = train_opt(0.0, "board tilt the stiffness about x and y leaves room for, deg (Eq. 8's range "
                                       "besides sim.EX_ROT; ours: 1 covers the touch family)", bounds=(0, 10))

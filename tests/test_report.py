@@ -157,6 +157,21 @@ def test_the_readme_contexts_table_gives_each_background_its_mean_and_worst_seed
     assert cells[3] == "0.95-0.95 / 0.90-0.90" and cells[6] == "0.30 (0.20)"      # training, the places, bg-light
 
 
+def test_the_readme_families_table_shows_the_default_and_the_robust_option_alone(tmp_path):
+    import sim
+    option = report.view_of({**dataclasses.asdict(tacrl.Config()), **report.OPTION})
+    old = report.view_of({**dataclasses.asdict(tacrl.Config()), "randomize": "light", "image_norm": "image"})
+    by = lambda sr: {"train": sr, **{f: sr for f in sim.FAMILIES}}                     # noqa: E731
+    families = {("peg", "task attention"): by([1.0, 0.9]), ("peg", option): by([0.95]), ("peg", old): by([0.5])}
+    readme = tmp_path / "README.md"
+    readme.write_text(f"{report.README_FAMILIES}:\n\n| old |\n")
+    report.write_readme_families(families, str(readme), log=lambda *_: None)
+    rows = readme.read_text().splitlines()[4:]
+    assert [r.split(" | ")[:3] for r in rows] == [["| peg, task attention", "2", "0.95 (0.90)"],
+                                                   [f"| peg, {option}", "1", "0.95 (0.95)"]]
+    assert "tilt_deg 1.0" in option and "mixed" in option
+
+
 def test_the_orders_sentence_says_it_holds_only_where_each_interval_lies_above_the_next():
     paper = lambda **srs: {k + report.PAPER_CRITICS: np.array(v) for k, v in srs.items()}   # noqa: E731
     apart = paper(ours=[0.9, 0.95, 1.0], keypoint=[0.6, 0.65, 0.7], visual=[0.0, 0.05, 0.1], vanilla=[0.0, 0.0, 0.1])
