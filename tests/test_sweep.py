@@ -38,6 +38,19 @@ def stand_in(job, threads):
     return [sys.executable, "-c", f"import os; print('ep', {job.state!r}, os.environ['OMP_NUM_THREADS'])"]
 
 
+def test_the_leave_one_out_takes_each_part_of_the_option_out_once_and_changes_nothing_else():
+    full = asdict(sweep.config_of(sweep.OPTION))
+    parts = [*full["randomize"].split(","), "image_norm", "tilt_deg"]
+    outs = []
+    for flags in sweep.leave_one_out():
+        cfg = asdict(sweep.config_of(flags))
+        changed = [k for k in full if cfg[k] != full[k]]
+        assert len(changed) == 1, changed
+        gone = set(full["randomize"].split(",")) - set(cfg["randomize"].split(","))
+        outs += list(gone) if changed == ["randomize"] else changed
+    assert sorted(outs) == sorted(parts)
+
+
 def test_a_sweep_runs_here_skips_what_finished_and_resumes_what_stopped(tmp_path, capsys, monkeypatch):
     root = str(tmp_path / "runs")
     monkeypatch.setattr(sweep, "job_command", stand_in)

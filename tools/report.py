@@ -94,9 +94,9 @@ RESULTS_DIR = "results"       # the archived runs the report is built from; the 
 # what each report reads by default: an experiment's runs lie in results/<experiment of tools/sweep.py>/
 REPORT_RUNS = ",".join(f"{RESULTS_DIR}/{e}/*" for e in ("table1", "contexts", *ABLATIONS))
 CONTEXT_RUNS = f"{RESULTS_DIR}/contexts/*,{RESULTS_DIR}/robust/*,{RESULTS_DIR}/option/*"
-# the robust option (issue 53, docs/ROBUST.md): trained among every family, the image norm, room for a tilted board;
-# results/option/ holds its runs as `python tacrl.py --task T` with these and 600 episodes, never stopped, makes them
-OPTION = {"randomize": "light,colour,parts,objects,touch,mixed", "image_norm": "image", "tilt_deg": 1.0}
+# the robust option's runs as `python tools/sweep.py option` makes them (sweep.OPTION, 600 episodes, never stopped)
+OPTION = {k: v for k, v in asdict(sweep.config_of(sweep.OPTION)).items()
+          if k in ("randomize", "image_norm", "tilt_deg")}
 ARCHIVED = ("config.json", "metrics.csv", "policy.pt", "curves.png", "train.log", "critics.json")    # and eval*.json
 
 
