@@ -159,7 +159,7 @@ def test_the_readme_contexts_table_gives_each_background_its_mean_and_worst_seed
 
 def test_the_readme_families_table_shows_the_default_and_the_robust_option_alone(tmp_path):
     import sim
-    option = report.view_of({**dataclasses.asdict(tacrl.Config()), **report.OPTION})
+    option = report.OPTION_VIEW
     old = report.view_of({**dataclasses.asdict(tacrl.Config()), "randomize": "light", "image_norm": "image"})
     by = lambda sr: {"train": sr, **{f: sr for f in sim.FAMILIES}}                     # noqa: E731
     families = {("peg", "task attention"): by([1.0, 0.9]), ("peg", option): by([0.95]), ("peg", old): by([0.5])}

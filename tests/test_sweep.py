@@ -39,7 +39,7 @@ def stand_in(job, threads):
 
 
 def test_the_leave_one_out_takes_each_part_of_the_option_out_once_and_changes_nothing_else():
-    full = asdict(sweep.config_of(sweep.OPTION))
+    full = asdict(sweep.config_of(sweep.FLAGS(sweep.OPTION)))
     parts = [*full["randomize"].split(","), "image_norm", "tilt_deg"]
     outs = []
     for flags in sweep.leave_one_out():

@@ -94,9 +94,6 @@ RESULTS_DIR = "results"       # the archived runs the report is built from; the 
 # what each report reads by default: an experiment's runs lie in results/<experiment of tools/sweep.py>/
 REPORT_RUNS = ",".join(f"{RESULTS_DIR}/{e}/*" for e in ("table1", "contexts", *ABLATIONS))
 CONTEXT_RUNS = f"{RESULTS_DIR}/contexts/*,{RESULTS_DIR}/robust/*,{RESULTS_DIR}/option/*"
-# the robust option's runs as `python tools/sweep.py option` makes them (sweep.OPTION, 600 episodes, never stopped)
-OPTION = {k: v for k, v in asdict(sweep.config_of(sweep.OPTION)).items()
-          if k in ("randomize", "image_norm", "tilt_deg")}
 ARCHIVED = ("config.json", "metrics.csv", "policy.pt", "curves.png", "train.log", "critics.json")    # and eval*.json
 
 
@@ -760,6 +757,10 @@ def view_of(cfg):
     return VIEWS.get(cfg["roi"], "") + setting[len("ours"):] if setting.startswith("ours") else ""
 
 
+# the view of the robust option's runs, as `python tools/sweep.py option` makes them (sweep.OPTION, 600 episodes)
+OPTION_VIEW = view_of(asdict(sweep.config_of(sweep.FLAGS(sweep.OPTION))))
+
+
 def evaluate_jobs(jobs_list, jobs):
     """context_rows of each job, in `jobs` processes (spawned: one torch thread each)."""
     if jobs == 1:
@@ -1007,9 +1008,8 @@ def check_readme(path, log=print):
 
 def write_readme_families(families, path, log):
     """The README's families table, made anew in place under its caption: task attention as trained by default and
-    with the robust OPTION, SR at FAMILY_MM, the mean over seeds and the worst seed's."""
-    option = view_of({**asdict(tacrl.Config()), **OPTION, "roi": "task"})
-    shown = [(k, v) for k, v in sorted(families.items()) if k[1] in (VIEWS["task"], option)]
+    with the robust option (OPTION_VIEW), SR at FAMILY_MM, the mean over seeds and the worst seed's."""
+    shown = [(k, v) for k, v in sorted(families.items()) if k[1] in (VIEWS["task"], OPTION_VIEW)]
     cell = lambda x: f"{np.mean(x):.2f} ({min(x):.2f})" if x else "-"      # noqa: E731
     table = ["| policy, mean (worst seed) | seeds | train | " + " | ".join(sim.FAMILIES) + " |",
              "|---" * (3 + len(sim.FAMILIES)) + "|"]
