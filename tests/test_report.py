@@ -183,3 +183,19 @@ def test_the_orders_sentence_says_it_holds_only_where_each_interval_lies_above_t
     below = {k: v for k, v in paper(ours=[0.3, 0.4], keypoint=[0.5, 0.6]).items()}
     said = report.ordering_sentence(below)
     assert "ours is not above keypoint RL" in said and "visual RL and vanilla RL are not run yet" in said
+
+
+def test_the_leave_one_out_has_a_table_of_its_own_named_by_the_part_left_out():
+    import sim
+    by = lambda sr: {"train": sr, **{f: sr for f in sim.FAMILIES}}                     # noqa: E731
+    view = {out: v for v, out in report.LOO_VIEWS.items()}
+    no_tilt, no_light = view["--tilt-deg"], view["light"]
+    families = {("peg", "task attention"): by([1.0]), ("peg", report.OPTION_VIEW): by([0.95, 1.0]),
+                ("peg", no_tilt): by([0.5]), ("peg", no_light): by([0.25])}
+    md = report.family_table(families, episodes=20)
+    split = next(i for i, line in enumerate(md) if line.startswith("What each part"))
+    main = [r.split(" | ")[1] for r in md[:split] if r.startswith("| peg")]
+    assert main == ["task attention", report.OPTION_VIEW]
+    loo = [r.split(" | ")[1:4] for r in md[split:] if r.startswith("| peg")]
+    assert loo == [["nothing (the option)", "2", "0.97 (0.95-1.00)"], ["`light`", "1", "0.25"],
+                   ["`--tilt-deg`", "1", "0.50"]]                                   # the option first, then as planned

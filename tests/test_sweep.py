@@ -42,12 +42,13 @@ def test_the_leave_one_out_takes_each_part_of_the_option_out_once_and_changes_no
     full = asdict(sweep.config_of(sweep.FLAGS(sweep.OPTION)))
     parts = [*full["randomize"].split(","), "image_norm", "tilt_deg"]
     outs = []
-    for flags in sweep.leave_one_out():
+    for named, flags in sweep.leave_one_out().items():
         cfg = asdict(sweep.config_of(flags))
         changed = [k for k in full if cfg[k] != full[k]]
         assert len(changed) == 1, changed
         gone = set(full["randomize"].split(",")) - set(cfg["randomize"].split(","))
         outs += list(gone) if changed == ["randomize"] else changed
+        assert outs[-1] == named.lstrip("-").replace("-", "_")         # each is named by the part it leaves out
     assert sorted(outs) == sorted(parts)
 
 

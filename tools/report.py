@@ -93,7 +93,7 @@ FAMILIES = {   # family: (title, curves, the paper's figure, the episodes each o
 RESULTS_DIR = "results"       # the archived runs the report is built from; the repository keeps them
 # what each report reads by default: an experiment's runs lie in results/<experiment of tools/sweep.py>/
 REPORT_RUNS = ",".join(f"{RESULTS_DIR}/{e}/*" for e in ("table1", "contexts", *ABLATIONS))
-CONTEXT_RUNS = f"{RESULTS_DIR}/contexts/*,{RESULTS_DIR}/robust/*,{RESULTS_DIR}/option/*"
+CONTEXT_RUNS = f"{RESULTS_DIR}/contexts/*,{RESULTS_DIR}/robust/*,{RESULTS_DIR}/option/*,{RESULTS_DIR}/option-loo/*"
 ARCHIVED = ("config.json", "metrics.csv", "policy.pt", "curves.png", "train.log", "critics.json")    # and eval*.json
 
 
@@ -759,6 +759,8 @@ def view_of(cfg):
 
 # the view of the robust option's runs, as `python tools/sweep.py option` makes them (sweep.OPTION, 600 episodes)
 OPTION_VIEW = view_of(asdict(sweep.config_of(sweep.FLAGS(sweep.OPTION))))
+# and of its leave-one-out (`python tools/sweep.py option-loo`): each view -> the part of the option it leaves out
+LOO_VIEWS = {view_of(asdict(sweep.config_of(flags))): out for out, flags in sweep.leave_one_out().items()}
 
 
 def evaluate_jobs(jobs_list, jobs):
@@ -785,6 +787,16 @@ def family_section(runs, episodes, jobs, log, readme=None):
         r = next(r for r in runs if r["dir"] == d)
         by_family = families[(r["cfg"]["task"], view_of(r["cfg"]))]
         by_family.setdefault(contexts.held_out_family(ctx), []).append(rows[0]["success_rate"])
+    md = family_table(families, episodes)
+    if readme:
+        write_readme_families(families, readme, log)
+    return md + ["", "The families (ranges in `contexts.py`, ours): " + "; ".join(f"`{f}`: {FAMILY_WHAT[f]}"
+                                                                               for f in sim.FAMILIES) + "."]
+
+
+def family_table(families, episodes):
+    """family_section's markdown: a row per (task, view) of families, {(task, view): {'train' or a family: [SR of
+    each seed]}}; the option's leave-one-out (LOO_VIEWS) in a table of its own, beside the option."""
     md = [f"Each family (`contexts.FAMILIES`) draws a scene from a seed; each of the {episodes} trials of a run meets "
           "a scene of its own, from seeds that training never draws (`--context FAMILY:test`). Success rate at "
           f"{FAMILY_MM:g} mm, mean over seeds (min-max); train: the run's eval.json (the same evaluation seeds).", "",
@@ -792,13 +804,23 @@ def family_section(runs, episodes, jobs, log, readme=None):
     cell = lambda x: (f"{np.mean(x):.2f} ({min(x):.2f}-{max(x):.2f})" if len(x) > 1  # noqa: E731
                       else f"{x[0]:.2f}" if x else "-")
     order = lambda kv: (kv[0][0], not kv[0][1].startswith(VIEWS["task"]), kv[0][1])   # noqa: E731
+    row = lambda by_family: (f"{len(by_family[sim.FAMILIES[0]])} | {cell(by_family.get('train', []))} | "  # noqa: E731
+                             + " | ".join(cell(by_family.get(f, [])) for f in sim.FAMILIES) + " |")
     for (task, view), by_family in sorted(families.items(), key=order):
-        md.append(f"| {task} | {view} | {len(by_family[sim.FAMILIES[0]])} | {cell(by_family.get('train', []))} | "
-                  + " | ".join(cell(by_family.get(f, [])) for f in sim.FAMILIES) + " |")
-    if readme:
-        write_readme_families(families, readme, log)
-    return md + ["", "The families (ranges in `contexts.py`, ours): " + "; ".join(f"`{f}`: {FAMILY_WHAT[f]}"
-                                                                               for f in sim.FAMILIES) + "."]
+        if view not in LOO_VIEWS:
+            md.append(f"| {task} | {view} | {row(by_family)}")
+    loo = [(task, view) for task, view in families if view in LOO_VIEWS]
+    if loo:
+        md += ["", "What each part of the robust option gives: the option (`python tools/sweep.py option`) and the "
+               "option with one part left out (`python tools/sweep.py option-loo`), the rest unchanged; the same "
+               "cells as above.", "", "| task | left out | seeds | train | " + " | ".join(sim.FAMILIES) + " |",
+               "|---" * (4 + len(sim.FAMILIES)) + "|"]
+        for task in sorted({t for t, _ in loo}):
+            md += [f"| {task} | nothing (the option) | {row(families[(task, OPTION_VIEW)])}"] * \
+                ((task, OPTION_VIEW) in families)
+            md += [f"| {task} | `{out}` | {row(families[(task, view)])}"
+                   for view, out in LOO_VIEWS.items() if (task, view) in families]
+    return md
 
 
 README_FAMILIES = "Held-out scenes drawn from families"      # the README's captions of the tables the report makes

@@ -41,11 +41,11 @@ FLAGS = lambda d: [x for flag_value in d.items() for x in flag_value]     # noqa
 
 
 def leave_one_out():
-    """OPTION's flags without each of its parts in turn: each family of --randomize, then each other flag."""
+    """{the part left out: OPTION's flags without it}, each family of --randomize, then each other flag."""
     families = OPTION["--randomize"].split(",")
-    less = [{**OPTION, "--randomize": ",".join(f for f in families if f != out)} for out in families]
-    less += [{k: v for k, v in OPTION.items() if k != out} for out in OPTION if out != "--randomize"]
-    return [FLAGS(d) for d in less]
+    less = {out: {**OPTION, "--randomize": ",".join(f for f in families if f != out)} for out in families}
+    less.update({out: {k: v for k, v in OPTION.items() if k != out} for out in OPTION if out != "--randomize"})
+    return {out: FLAGS(d) for out, d in less.items()}
 
 
 EXPERIMENTS = {
@@ -65,7 +65,7 @@ EXPERIMENTS = {
                          ["--randomize", "light,colour,parts", "--image-norm", "image"])],
     # issue 53's robust option at 600 episodes, and it with each of its parts left out (peg): its leave-one-out
     "option": [["--task", t, *FLAGS(OPTION), *BUDGET(600)] for t in ("peg", "gear")],
-    "option-loo": [["--task", "peg", *flags, *BUDGET(600)] for flags in leave_one_out()],
+    "option-loo": [["--task", "peg", *flags, *BUDGET(600)] for flags in leave_one_out().values()],
 }
 SEEDS = (0, 1, 2)     # the seeds of a row of the report's tables: 3, as the task's bar asks where a table shows one
 PROJECT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
