@@ -199,3 +199,5 @@ def test_the_leave_one_out_has_a_table_of_its_own_named_by_the_part_left_out():
     loo = [r.split(" | ")[1:4] for r in md[split:] if r.startswith("| peg")]
     assert loo == [["nothing (the option)", "2", "0.97 (0.95-1.00)"], ["`light`", "1", "0.25"],
                    ["`--tilt-deg`", "1", "0.50"]]                                   # the option first, then as planned
+    alone = report.family_table({("peg", no_light): by([0.25])}, episodes=20)          # a run of it, reported alone
+    assert [r.split(" | ")[1] for r in alone if r.startswith("| peg")] == ["`light`"]
