@@ -809,15 +809,16 @@ def family_table(families, episodes):
     for (task, view), by_family in sorted(families.items(), key=order):
         if view not in LOO_VIEWS:
             md.append(f"| {task} | {view} | {row(by_family)}")
-    loo = [(task, view) for task, view in families if view in LOO_VIEWS]
-    if loo:
+    loo_tasks = sorted({task for task, view in families if view in LOO_VIEWS})
+    if loo_tasks:
         md += ["", "What each part of the robust option gives: the option (`python tools/sweep.py option`) and the "
                "option with one part left out (`python tools/sweep.py option-loo`), the rest unchanged; the same "
                "cells as above, over the seeds each has run (the leave-one-out starts with seed 0). `mixed` draws "
                "place, light, colour, parts and objects together, so a family left out of `--randomize` still "
-               "comes, more rarely, in mixed's scenes; left out with it, it would not.", "", "| task | left out | seeds | train | " + " | ".join(sim.FAMILIES) + " |",
+               "comes, more rarely, in mixed's scenes; left out with it, it would not.", "",
+               "| task | left out | seeds | train | " + " | ".join(sim.FAMILIES) + " |",
                "|---" * (4 + len(sim.FAMILIES)) + "|"]
-        for task in sorted({t for t, _ in loo}):
+        for task in loo_tasks:
             if (task, OPTION_VIEW) in families:
                 md.append(f"| {task} | nothing (the option) | {row(families[(task, OPTION_VIEW)])}")
             md += [f"| {task} | `{out}` | {row(families[(task, view)])}"
