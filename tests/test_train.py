@@ -169,12 +169,19 @@ def test_a_worker_process_plays_every_other_episode_and_the_row_is_the_same(monk
         sac.actor.net[-1].weight.mul_(0.01)
     pi = evaluate.TrainedPolicy(evaluate.policy_file(sac, {"task": "peg", "obs": "ts-ptv", "roi": "task",
                                                            "vanilla": False, "ex_r": 0.001, "e_r_max": 0.02}))
+    here, real_play = {}, evaluate.play
+
+    def play(*a):       # this process plays a seed's episode once and gives it back when asked again (an episode
+        if a[2] not in here:                        # depends on its seed alone: test_sim); the worker's is compared
+            here[a[2]] = real_play(*a)
+        return here[a[2]]
+    monkeypatch.setattr(evaluate, "play", play)
     with evaluate.eval_env("peg", pi) as env, evaluate.Worker() as worker:
         alone = evaluate.evaluate(env, pi, 3, 5, log=lambda *_: None)
-        played, real_play = [], evaluate.play
-        monkeypatch.setattr(evaluate, "play", lambda *a: played.append(a[2]) or real_play(*a))
+        asked = []
+        monkeypatch.setattr(evaluate, "play", lambda *a: asked.append(a[2]) or play(*a))
         shared = evaluate.evaluate(env, pi, 3, 5, log=lambda *_: None, worker=worker)
-    assert shared == alone and played == [evaluate.episode_seed(5, 0), evaluate.episode_seed(5, 2)]
+    assert shared == alone and asked == [evaluate.episode_seed(5, 0), evaluate.episode_seed(5, 2)]
     assert alone["success_rate"] > 0                   # (the episodes ended early, not all at the time limit)
 
 
