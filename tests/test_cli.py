@@ -1,5 +1,6 @@
 """tacrl.py's command line: every flag described once, a user's mistake is one line and exit code 2,
 the hand-designed policy's evaluation row, a corrupt checkpoint or policy file is a one-line error."""
+import csv
 import dataclasses
 import json
 import os
@@ -32,6 +33,9 @@ def test_the_readmes_command_through_the_shell_in_a_tiny_configuration_without_t
     (tmp_path / "hidden").mkdir()
     for extra in ("gymnasium", "tensorboard"):
         (tmp_path / "hidden" / f"{extra}.py").write_text(f"raise ImportError('{extra} is not installed')\n")
+    # episodes of 15 steps, not 120, as the in-process tests' (Python runs sitecustomize before the command)
+    (tmp_path / "hidden" / "sitecustomize.py").write_text(f"import sys\nsys.path.insert(0, {ROOT!r})\n"
+                                                          "import sim\nsim.MAX_STEPS = 15\n")
     tiny = ["--train-episodes", "1", "--warmup", "0", "--updates", "2", "--batch", "8", "--buffer", "240",
             "--episodes", "1", "--eval-levels", "0"]
     shell = lambda *argv: subprocess.run([sys.executable, os.path.join(ROOT, "tacrl.py"), *argv],  # noqa: E731
@@ -45,6 +49,8 @@ def test_the_readmes_command_through_the_shell_in_a_tiny_configuration_without_t
     assert sorted(os.listdir(run)) == ["ckpt.pt", "config.json", "curves.png", "eval.json", "metrics.csv", "policy.pt",
                                        "replay"]
     assert json.loads((run / "eval.json").read_text())["train_episodes"] == 1
+    with open(run / "metrics.csv") as f:
+        assert [row["steps"] for row in csv.DictReader(f)] == ["15"]          # the budget above was the one run
 
 
 def test_each_flag_is_described_once_in_help(capsys):
