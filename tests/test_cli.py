@@ -33,9 +33,9 @@ def test_the_readmes_command_through_the_shell_in_a_tiny_configuration_without_t
     (tmp_path / "hidden").mkdir()
     for extra in ("gymnasium", "tensorboard"):
         (tmp_path / "hidden" / f"{extra}.py").write_text(f"raise ImportError('{extra} is not installed')\n")
-    # episodes of 15 steps, not 120, as the in-process tests' (Python runs sitecustomize before the command)
+    steps = 15          # an episode's, not 120, as the in-process tests' (Python runs sitecustomize before the command)
     (tmp_path / "hidden" / "sitecustomize.py").write_text(f"import sys\nsys.path.insert(0, {ROOT!r})\n"
-                                                          "import sim\nsim.MAX_STEPS = 15\n")
+                                                          f"import sim\nsim.MAX_STEPS = {steps}\n")
     tiny = ["--train-episodes", "1", "--warmup", "0", "--updates", "2", "--batch", "8", "--buffer", "240",
             "--episodes", "1", "--eval-levels", "0"]
     shell = lambda *argv: subprocess.run([sys.executable, os.path.join(ROOT, "tacrl.py"), *argv],  # noqa: E731
@@ -50,7 +50,7 @@ def test_the_readmes_command_through_the_shell_in_a_tiny_configuration_without_t
                                        "replay"]
     assert json.loads((run / "eval.json").read_text())["train_episodes"] == 1
     with open(run / "metrics.csv") as f:
-        assert [row["steps"] for row in csv.DictReader(f)] == ["15"]          # the budget above was the one run
+        assert [int(row["steps"]) for row in csv.DictReader(f)] == [steps]    # the budget above was the one run
 
 
 def test_each_flag_is_described_once_in_help(capsys):

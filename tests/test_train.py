@@ -163,7 +163,7 @@ def test_evaluating_policy_pt_repeats_eval_json(tiny_run, tmp_path, monkeypatch)
 
 def test_a_worker_process_plays_every_other_episode_and_the_row_is_the_same(monkeypatch):
     # every episode is a fresh world drawn from its seed alone, so who plays it changes nothing. The policy: a new
-    # agent's, its residual scaled down so that the hand-designed part inserts; two episodes, the worker plays one
+    # agent's, its residual scaled down so that the hand-designed part inserts
     torch.manual_seed(0)                            # (its weights, whatever tests ran before in this process)
     sac = tacrl.make_sac(tacrl.parse_args(["--task", "peg", "--threads", "1"]))
     with torch.no_grad():
@@ -178,11 +178,11 @@ def test_a_worker_process_plays_every_other_episode_and_the_row_is_the_same(monk
         return here[a[2]]
     monkeypatch.setattr(evaluate, "play", play)
     with evaluate.eval_env("peg", pi) as env, evaluate.Worker() as worker:
-        alone = evaluate.evaluate(env, pi, 2, 5, log=lambda *_: None)
+        alone = evaluate.evaluate(env, pi, 3, 5, log=lambda *_: None)
         asked = []
         monkeypatch.setattr(evaluate, "play", lambda *a: asked.append(a[2]) or play(*a))
-        shared = evaluate.evaluate(env, pi, 2, 5, log=lambda *_: None, worker=worker)
-    assert shared == alone and asked == [evaluate.episode_seed(5, 0)]
+        shared = evaluate.evaluate(env, pi, 3, 5, log=lambda *_: None, worker=worker)
+    assert shared == alone and asked == [evaluate.episode_seed(5, 0), evaluate.episode_seed(5, 2)]
     assert alone["success_rate"] > 0                   # (the episodes ended early, not all at the time limit)
 
 
