@@ -141,6 +141,7 @@ R_DOWN = np.diag([1.0, -1.0, -1.0])                  # tool z down, tool x along
 # full camera view: 800 x 800 px (the paper's ROI-800*800), 90 deg, a wide-angle USB camera's (at 60 deg it
 # showed the board and little else: README difference 14); ROIs are windows of it
 CAM_FULL, CAM_FOV, CAM_NEAR, CAM_FAR = 800, 90.0, 0.01, 2.0
+VIDEO_W, VIDEO_H = 480, 360                          # px of the external view that videos show
 
 WHITE, GREY, DARK, BLACK = (0.92, 0.92, 0.9, 1), (0.55, 0.55, 0.55, 1), (0.2, 0.2, 0.22, 1), (0.03, 0.03, 0.03, 1)
 WOOD = (0.62, 0.48, 0.34, 1)
@@ -558,8 +559,9 @@ class World:
             return np.clip(np.rint(gray), 0, 255).astype(np.uint8)
         return gray.astype(np.uint8)
 
-    def render_external(self, w=480, h=360):
-        """An external RGB view of the task for videos."""
+    def render_external(self):
+        """An external RGB view (VIDEO_H, VIDEO_W, 3) uint8 of the task, for videos and rgb_array renders."""
+        w, h = VIDEO_W, VIDEO_H
         tgt = self.bc.getBasePositionAndOrientation(self.plate[0])[0]
         view = self.bc.computeViewMatrixFromYawPitchRoll(tgt, 0.35, 50, -25, 0, 2)
         proj = self.bc.computeProjectionMatrixFOV(50, w / h, 0.01, 3)

@@ -10,7 +10,7 @@ import sys
 import cv2
 import pytest
 
-
+import scene
 import sim
 import tacrl
 
@@ -33,7 +33,7 @@ def test_the_readmes_command_through_the_shell_in_a_tiny_configuration_without_t
     (tmp_path / "hidden").mkdir()
     for extra in ("gymnasium", "tensorboard"):
         (tmp_path / "hidden" / f"{extra}.py").write_text(f"raise ImportError('{extra} is not installed')\n")
-    steps = 15          # an episode's, not 120, as the in-process tests' (Python runs sitecustomize before the command)
+    steps = 9           # an episode's, not 120, as the in-process tests' (Python runs sitecustomize before the command)
     (tmp_path / "hidden" / "sitecustomize.py").write_text(f"import sys\nsys.path.insert(0, {ROOT!r})\n"
                                                           f"import sim\nsim.MAX_STEPS = {steps}\n")
     tiny = ["--train-episodes", "1", "--warmup", "0", "--updates", "2", "--batch", "8", "--buffer", "240",
@@ -62,8 +62,10 @@ def test_each_flag_is_described_once_in_help(capsys):
         assert flag in text and "".join(f.metadata["help"].split()) in text, flag
 
 
-def test_initial_policy_row_json_and_a_video_browsers_play(tmp_path, capsys):
+def test_initial_policy_row_json_and_a_video_browsers_play(tmp_path, capsys, monkeypatch):
     out, video = tmp_path / "row.json", tmp_path / "ep.webm"
+    monkeypatch.setattr(scene, "VIDEO_W", 160)            # (a frame's size is not checked; at 480 x 360 the frames'
+    monkeypatch.setattr(scene, "VIDEO_H", 120)            # renders and their encoding took most of the test's time)
     assert tacrl.main(["--task", "peg", "--eval", "initial", "--error-mm", "0", "--episodes", "1", "--json", str(out),
                        "--video", str(video)]) == 0
     stdout = capsys.readouterr().out

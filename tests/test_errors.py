@@ -41,7 +41,7 @@ def unfinished_run(tmp_path_factory):
     """A tiny run that trained its three episodes but was stopped before its evaluation: one to --resume."""
     run_dir = str(tmp_path_factory.mktemp("errors") / "run")
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(sim, "MAX_STEPS", 15)
+        mp.setattr(sim, "MAX_STEPS", 9)
         tacrl.train(tacrl.parse_args(TINY + ["--run-dir", run_dir]), log=lambda *_: None)
     os.remove(os.path.join(run_dir, "eval.json"))
     return run_dir
@@ -80,7 +80,7 @@ def workdir(tmp_path_factory, unfinished_run):
 @pytest.fixture
 def here(workdir, monkeypatch):
     monkeypatch.chdir(workdir)
-    monkeypatch.setattr(sim, "MAX_STEPS", 15)                 # TINY's 40-transition buffer holds an episode
+    monkeypatch.setattr(sim, "MAX_STEPS", 9)                  # TINY's 40-transition buffer holds an episode
     monkeypatch.delenv("DISPLAY", raising=False)
     return workdir
 

@@ -25,7 +25,7 @@ import tacrl
 TINY = ["--task", "peg", "--error-mm", "1", "--train-episodes", "8", "--warmup", "1", "--updates", "2",
         "--batch", "8", "--episodes", "1", "--eval-levels", "1", "--buffer", "40", "--threads", "1"]
 # (--threads 1: the same numbers as 2, and lighter beside the other test worker)
-SHORT = 15           # steps an episode, not 120: the untrained policy runs every one to the limit, and
+SHORT = 9            # steps an episode, not 120: the untrained policy runs every one to the limit, and
                      # TINY's 40-transition ring wraps in mid-episode
 TIMES = ("env_s", "update_s", "elapsed_s")
 
