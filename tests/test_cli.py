@@ -64,8 +64,8 @@ def test_each_flag_is_described_once_in_help(capsys):
 
 def test_initial_policy_row_json_and_a_video_browsers_play(tmp_path, capsys, monkeypatch):
     out, video = tmp_path / "row.json", tmp_path / "ep.webm"
-    monkeypatch.setattr(scene, "VIDEO_W", 160)            # (a frame's size is not checked; at 480 x 360 the frames'
-    monkeypatch.setattr(scene, "VIDEO_H", 120)            # renders and their encoding took most of the test's time)
+    monkeypatch.setattr(scene, "VIDEO_W", 160)            # small frames: at 480 x 360, their renders and their
+    monkeypatch.setattr(scene, "VIDEO_H", 120)            # encoding took most of the test's time
     assert tacrl.main(["--task", "peg", "--eval", "initial", "--error-mm", "0", "--episodes", "1", "--json", str(out),
                        "--video", str(video)]) == 0
     stdout = capsys.readouterr().out
@@ -74,16 +74,17 @@ def test_initial_policy_row_json_and_a_video_browsers_play(tmp_path, capsys, mon
     assert row["success_rate"] == 1.0 and row["episodes"] == 1
     assert 5.0 < row["completion_time_s"][0] < 24.0
     assert row["cumulative_reward"][0] > 0
-    # WebM (its EBML header and doctype) holding VP9, a frame a policy step, as OpenCV reads it back
+    # WebM (its EBML header and doctype) holding VP9, a frame a policy step of the view's size, as OpenCV reads it back
     head = video.read_bytes()[:64]
     assert head.startswith(b"\x1a\x45\xdf\xa3") and b"webm" in head
     cap = cv2.VideoCapture(str(video))
     fourcc = int(cap.get(cv2.CAP_PROP_FOURCC)).to_bytes(4, "little")
+    size = (cap.get(cv2.CAP_PROP_FRAME_WIDTH), cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
     frames = 0
     while cap.read()[0]:
         frames += 1
     cap.release()
-    assert fourcc == b"VP90" and frames == round(row["completion_time_s"][0] * sim.POLICY_HZ)
+    assert fourcc == b"VP90" and size == (160, 120) and frames == round(row["completion_time_s"][0] * sim.POLICY_HZ)
 
 
 def test_a_video_format_this_opencv_cannot_write_is_one_line_before_any_work(tmp_path, capsys):
