@@ -386,7 +386,7 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
         self.close()
 
     def render(self):
-        """The external camera's RGB view (360, 480, 3) uint8, for render_mode 'rgb_array'; else None."""
+        """The external camera's RGB view (scene.VIDEO_H, VIDEO_W, 3) uint8, for render_mode 'rgb_array'; else None."""
         return self.world.render_external() if self.render_mode == "rgb_array" else None
 
     def close(self):
