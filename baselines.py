@@ -9,6 +9,7 @@ base policy: F_d alone moves the tool) and `--obs v` (vision only).
 """
 import numpy as np
 
+import tacrl_flat  # noqa: F401  (first: where another package shadows one of our modules, one line says so)
 import sim
 
 

@@ -40,20 +40,59 @@ class Parser(argparse.ArgumentParser):
 
 def parse(config_cls, argv, description):
     """argv -> {field name: value} of the flags given (not the defaults: the caller can tell what the
-    user asked for), through a Parser built from config_cls's opt() fields; floats must be finite."""
-    ap = Parser(description=description)
-    for f in dataclasses.fields(config_cls):
-        flag = "--" + f.name.replace("_", "-")
-        lo, hi = f.metadata["bounds"] or (None, None)
-        bounds = "" if f.metadata["bounds"] is None else \
-            f"; {lo if lo is not None else ''}..{hi if hi is not None else ''}"
-        hlp = f.metadata["help"] + (f" (default: {f.default}{bounds})" if f.default not in ("", False) else "")
-        if f.type is bool:
-            ap.add_argument(flag, action="store_true", default=argparse.SUPPRESS, help=hlp)
-        else:
-            ap.add_argument(flag, type=finite_float if f.type is float else f.type, default=argparse.SUPPRESS,
-                            choices=f.metadata["choices"], help=hlp)
+    user asked for), through a Parser built from config_cls's opt() fields; floats must be finite. --help lists
+    them under config_cls.GROUPS' titles where it has them ({title: field names}, every field in one)."""
+    ap = Parser(description=description, usage="%(prog)s [flags of the groups below]",
+                formatter_class=argparse.RawDescriptionHelpFormatter)     # (the description's lines as written)
+    for title, names in groups_of(config_cls).items():
+        section = ap.add_argument_group(title) if title else ap
+        for f in (f for f in dataclasses.fields(config_cls) if f.name in names):
+            flag = "--" + f.name.replace("_", "-")
+            lo, hi = f.metadata["bounds"] or (None, None)
+            bounds = "" if f.metadata["bounds"] is None else \
+                f"; {lo if lo is not None else ''}..{hi if hi is not None else ''}"
+            hlp = f.metadata["help"] + (f" (default: {f.default}{bounds})" if f.default not in ("", False) else "")
+            if f.type is bool:
+                section.add_argument(flag, action="store_true", default=argparse.SUPPRESS, help=hlp)
+            else:                          # (a long list of choices: the help names them, the usage line not)
+                choices = f.metadata["choices"]
+                long = choices is not None and len(",".join(choices)) > 60
+                section.add_argument(flag, type=finite_float if f.type is float else f.type,
+                                     default=argparse.SUPPRESS, choices=choices, help=hlp,
+                                     metavar=f.name.upper() if long else None)
     return vars(ap.parse_args(argv))
+
+
+def groups_of(config_cls):
+    """config_cls.GROUPS ({title: field names}), checked to hold every field once; {'': all} where it has none."""
+    names = [f.name for f in dataclasses.fields(config_cls)]
+    groups = getattr(config_cls, "GROUPS", None) or {"": tuple(names)}
+    grouped = [n for g in groups.values() for n in g]
+    if sorted(grouped) != sorted(names):
+        raise TypeError(f"{config_cls.__name__}.GROUPS must hold each field once: "
+                        f"{sorted(set(names) ^ set(grouped)) or 'some twice'}")
+    return groups
+
+
+def format_config(cfg, width=110):
+    """The config as a reader takes it in: a line a group of config_cls.GROUPS (its title before any bracket), its
+    flags as they are typed (`--error-mm 20`), wrapped at `width`; a flag that is off (false, or '') is left out."""
+    groups = {title.split(" (")[0] or "flags": names for title, names in groups_of(type(cfg)).items()}
+    indent = 2 + max(map(len, groups)) + 2
+    lines = ["config:"]
+    for title, names in groups.items():
+        line = f"  {title}".ljust(indent - 1)
+        for n in names:
+            v = getattr(cfg, n)
+            if v is False or v == "":
+                continue
+            word = f"--{n.replace('_', '-')}" + ("" if v is True else f" {v:g}" if isinstance(v, float) else f" {v}")
+            if len(line) + 1 + len(word) > width and line.strip():
+                lines.append(line)
+                line = " " * (indent - 1)
+            line += " " + word
+        lines.append(line)
+    return "\n".join(lines)
 
 
 def check_bounds(cfg):

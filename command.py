@@ -8,17 +8,19 @@ import json
 import os
 import sys
 import tempfile
-from dataclasses import asdict, fields, replace
+from dataclasses import fields, replace
 
 import torch
 
+import tacrl_flat  # noqa: F401  (first: where another package shadows one of our modules, one line says so)
 import baselines
 import contexts
 import evaluate
 import rundir
 import scene
 import sim
-from cli import ArgError, check_bounds, check_dir_writable, check_new_file, describe, from_dict, parse
+from cli import (ArgError, check_bounds, check_dir_writable, check_new_file, describe, format_config, from_dict,
+                 parse)
 
 RESUME_MAY_SET = ("resume", "train_episodes", "stop_held", "threads", "track")   # to extend a run; nothing else changes
 NOT_LEARNING = ("eval", "resume", "run_dir", "track", "threads", "device", "gui", "episodes", "json", "video",
@@ -114,7 +116,8 @@ def check(cfg):
     randomize = sim.randomize_problem(cfg.families, cfg.context)      # as the env checks it, before any work
     for bad, msg in [
             (cfg.eval and cfg.eval not in baselines.NAMES and not os.path.isfile(cfg.eval),
-             f"--eval must be {', '.join(baselines.NAMES)} or an existing policy.pt file, not {cfg.eval!r}"),
+             f"--eval must be {', '.join(baselines.NAMES)}, an existing policy.pt or a run's ckpt.pt, not "
+             f"{cfg.eval!r}"),
             (cfg.eval == "two-step" and cfg.task != "peg", "--eval two-step is the peg-in-hole baseline (Table 1)"),
             (not cfg.eval and contexts.held_out_family(cfg.context),
              f"--context {cfg.context} draws held-out scenes: it is for --eval (training draws its own with "
@@ -221,10 +224,11 @@ def load_config(config_cls, run_dir):
     return cfg
 
 
-def load_policy(path, task, device="cpu"):
-    """--eval's policy.pt, or a one-line mistake: a file that is not one, or one for another task."""
+def load_policy(load, path, task, device="cpu"):
+    """--eval's policy.pt (load(path, device): the caller's reader of policy files), or a one-line mistake: a file
+    that is not one, or one for another task."""
     try:
-        pi = evaluate.load_policy(path, device)
+        pi = load(path, device)
     except ValueError as e:
         raise ArgError(f"--eval {path!r}: {e}")
     if pi.meta["task"] != task:
@@ -232,14 +236,15 @@ def load_policy(path, task, device="cpu"):
     return pi
 
 
-def run_evaluation(cfg):
-    """--eval: a policy.pt, the hand-designed policy alone or the two-step baseline, at --error-mm."""
-    pi = None if cfg.eval in baselines.NAMES else load_policy(cfg.eval, cfg.task, cfg.device)
+def run_evaluation(cfg, load=evaluate.load_policy):
+    """--eval: a policy file (load(path, device) reads it: tacrl.load_policy takes a ckpt.pt too), the hand-designed
+    policy alone or the two-step baseline, at --error-mm."""
+    pi = None if cfg.eval in baselines.NAMES else load_policy(load, cfg.eval, cfg.task, cfg.device)
     if pi is not None and pi.meta["roi"] != cfg.roi:      # its encoder learned that view, not another
         raise ArgError(f"--eval {cfg.eval!r}: this policy was trained with --roi {pi.meta['roi']}, not {cfg.roi}")
     if pi is not None and cfg.error_mm > pi.meta["e_r_max"] * 1000 + 1e-6:   # Eq. 11's ROI would widen
         raise ArgError(f"--error-mm {cfg.error_mm:g}: this policy's view covers {pi.meta['e_r_max'] * 1000:g} mm")
-    print(f"config: {asdict(cfg)}", flush=True)
+    print(format_config(cfg), flush=True)
     use_cpu(cfg.device)
     with evaluate.eval_env(cfg.task, pi, cfg.context, cfg.roi, cfg.clearance_mm, cfg.error_mm, cfg.gui) as env:
         video = evaluate.open_video(cfg.video, env.world.render_external().shape[1::-1]) if cfg.video else None

@@ -8,6 +8,7 @@ Each is a scene.Context, which scene.World builds.
 """
 import numpy as np
 
+import tacrl_flat  # noqa: F401  (first: where another package shadows one of our modules, one line says so)
 import control as ctl
 from scene import (BRASS, BUMP_R_MAX, DARK, GEAR_CENTRES, GEAR_R_TIP, GREY, PART_BLUE, PEG_RADIUS, SHAFT_HEIGHT,
                    TOOL_FRICTION, WORKCELL, Context)

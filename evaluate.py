@@ -21,6 +21,7 @@ import cv2
 import numpy as np
 import torch
 
+import tacrl_flat  # noqa: F401  (first: where another package shadows one of our modules, one line says so)
 import policy
 import rundir
 import scene
@@ -29,6 +30,7 @@ import sim
 POLICY_FORMAT = "tacrl-policy-2"
 EVAL_SEED = 1000             # evaluation episodes use seeds from EVAL_SEED + the run's seed: never a training seed
 POLICY_META = ("task", "roi", "vanilla", "ex_r", "e_r_max")     # what training tells evaluation (tacrl.finish)
+VIDEO_FPS = 20               # a video's frames a second of simulated time: one every 6 of the 120 Hz controller's ticks
 
 
 def policy_file(sac, meta):
@@ -68,13 +70,18 @@ class TrainedPolicy:
         self.actor.load_state_dict(d["actor"])
 
     def __call__(self, obs):
+        """obs: the env's observation -> action (6,); or a vector env's batch of them -> (B, 6)."""
         return policy.act(self.encoder, self.actor, obs, deterministic=True, device=self.device)
 
 
-def load_policy(path, device="cpu"):
-    """policy.pt -> TrainedPolicy; ValueError saying what is wrong with a file that is not one."""
+def load_policy(path, device="cpu", from_checkpoint=None):
+    """policy.pt -> TrainedPolicy; ValueError saying what is wrong with a file that is not one. from_checkpoint(path,
+    contents) -> a policy file's contents, where given, reads a training checkpoint too (tacrl.checkpoint_policy)."""
     try:
-        pi = TrainedPolicy(rundir.load_file(path, device), device)
+        d = rundir.load_file(path, device)
+        if from_checkpoint is not None and isinstance(d, dict) and "sac" in d and "format" not in d:
+            d = from_checkpoint(path, d)
+        pi = TrainedPolicy(d, device)
     except Exception as e:          # corrupt, truncated, foreign: one phrase for the caller's line
         lines = str(e).strip().splitlines()
         raise ValueError(f"cannot load the policy ({type(e).__name__}{': ' + lines[0][:120] if lines else ''})")
@@ -100,41 +107,55 @@ def episode_seed(seed, k):
 
 def play(env, act, seed, video=None):
     """One evaluation episode: (success, completion time s, peak |contact force| per world axis (3,) N, return).
-    video: an open_video writer that gets a frame a policy step."""
-    peak = np.zeros(3)
+    video: an open_video writer that gets VIDEO_FPS frames a second of the episode's simulated time, taken between
+    the controller's ticks (the policy's 5 Hz alone plays as a slide show)."""
+    peak, ticks = np.zeros(3), iter(range(10 ** 9))
 
     def on_step(obs, r, info):
         np.maximum(peak, np.abs(info["f_world"][:3]), out=peak)
-        if video is not None:
+
+    def frame():
+        if next(ticks) % (scene.CONTROL_HZ // VIDEO_FPS) == 0:
             video.write(env.world.render_external()[:, :, ::-1])     # RGB -> OpenCV's BGR
-    term, info, ret = sim.run_episode(env, act, seed=seed, on_step=on_step)
+    env.on_tick = frame if video is not None else None
+    try:
+        term, info, ret = sim.run_episode(env, act, seed=seed, on_step=on_step)
+    finally:
+        env.on_tick = None
     return bool(term), float(info["t"]), peak, float(ret)
 
 
-def evaluate(env, act, episodes, seed, video=None, log=print, worker=None):
+def shares(act, episodes, worker):
+    """Whether a Worker plays the odd episodes of an evaluation (a TrainedPolicy's, more than one)."""
+    return worker is not None and isinstance(act, TrainedPolicy) and episodes > 1
+
+
+def evaluate(env, act, episodes, seed, video=None, log=print, worker=None, later=0):
     """Roll out act(obs) -> action for `episodes` episodes (episode k's seed: episode_seed(seed, k)); returns the
     Table-1/2 row: success rate, completion time of the successful episodes (s), peak |contact force|
     per world axis in each episode (N) and cumulative reward, each as [mean, std]. video: an open_video
-    writer that gets the first episode, a frame a policy step. worker: a Worker that plays the odd episodes
-    of a TrainedPolicy meanwhile, on the second core (the same row: an episode depends on its seed only)."""
-    shared = worker is not None and isinstance(act, TrainedPolicy) and episodes > 1
+    writer that gets the first episode (VIDEO_FPS frames a second of its simulated time). worker: a Worker that
+    plays the odd episodes of a TrainedPolicy meanwhile, on the second core (the same row: an episode depends on its
+    seed only). log gets a line an episode; its ETA counts `later` episodes of this process still to come after
+    these (evaluate_levels' next levels)."""
+    shared = shares(act, episodes, worker)
     mine = range(0, episodes, 2) if shared else range(episodes)
     if shared:
         worker.start(env, act, [episode_seed(seed, k) for k in range(1, episodes, 2)])
     out, t0 = {}, time.time()
 
-    def show(k, res, done, left):
+    def show(k, res, played):           # played: this process's episodes so far, for the time an episode takes
         el = time.time() - t0
         log(f"episode {k + 1}/{episodes}  success {int(res[0])}  time {res[1]:5.1f}s  return {res[3]:7.1f}  "
             f"|F|max x/y/z {res[2][0]:5.1f}/{res[2][1]:5.1f}/{res[2][2]:5.1f} N  elapsed {el:5.0f}s  "
-            f"ETA {el / done * left:4.0f}s")
+            f"ETA {el / played * (len(mine) - played + later):4.0f}s")
     for i, k in enumerate(mine):
         out[k] = play(env, act, episode_seed(seed, k), video if k == 0 else None)
-        show(k, out[k], i + 1, len(mine) - i - 1)
+        show(k, out[k], i + 1)
     if shared:
         for k, res in zip(range(1, episodes, 2), worker.results()):
             out[k] = res
-            show(k, res, 1, 0)
+            show(k, res, len(mine))
     succ, times, forces, returns = zip(*(out[k] for k in range(episodes)))
     times, forces = [t for t, s in zip(times, succ) if s], np.array(forces)
     mean_std = lambda x: [float(np.mean(x)), float(np.std(x))] if len(x) else None   # noqa: E731 (None: no success)
@@ -144,13 +165,15 @@ def evaluate(env, act, episodes, seed, video=None, log=print, worker=None):
             "episodes": episodes}
 
 
-def evaluate_levels(env, act, levels, episodes, seed, log=lambda row: None, worker=None):
+def evaluate_levels(env, act, levels, episodes, seed, log=lambda row: None, worker=None, progress=lambda line: None):
     """Table-2 rows: `evaluate` at each error range E_r in `levels` (mm), with Ex_r held where the
-    policy's training ended (the controller stays as trained)."""
-    rows = []
-    for mm in levels:
+    policy's training ended (the controller stays as trained). log gets each row; progress a line an episode,
+    its ETA over every level."""
+    rows, here = [], len(range(0, episodes, 2 if shares(act, episodes, worker) else 1))   # this process's a level
+    for i, mm in enumerate(levels):
         env.set_ranges(mm / 1000, act.meta["ex_r"])
-        row = evaluate(env, act, episodes, seed, log=lambda *_: None, worker=worker)
+        row = evaluate(env, act, episodes, seed, log=lambda line: progress(f"eval {mm:g} mm  {line}"), worker=worker,
+                       later=here * (len(levels) - i - 1))
         row.update(error_mm=mm, ex_r_mm=round(env.ex_r * 1000, 3))
         rows.append(row)
         log(row)
@@ -264,7 +287,7 @@ def serve(fd):
 VIDEO_CODECS = {".webm": ("VP90", "VP9"), ".mp4": ("avc1", "H.264")}   # what browsers play (MDN's video codec guide)
 
 
-def open_video(path, size, fps=sim.POLICY_HZ):
+def open_video(path, size, fps=VIDEO_FPS):
     """A cv2.VideoWriter of (w, h) BGR frames, its codec chosen by the extension (.webm: VP9, .mp4: H.264);
     ValueError where this OpenCV cannot write that format (OpenCV's pip wheels encode VP9 with libvpx but
     carry no H.264 encoder). Release it inside scene.quiet_c_output(): FFmpeg prints as it closes."""

@@ -15,8 +15,9 @@ The paper's 18-d fusion vector from "a 6-d image feature" and "6-d time-series f
 variants (--obs): ts-ptv (the method, 18-d), ts-pt (no image, 12), pt (the current pose and wrench through
 an MLP, 12), v (the image alone, 6), ts-ptk (keypoint RL: the hole's keypoint for the image, 18).
 
-Critics: the paper's, on the actor's multimodal encoder, or privileged ones (StateEncoder), which read a
-state vector only training knows; the actor never reads it (SAC's docstring). Every hyper-parameter's
+Critics: multimodal ones on the actor's encoder as the paper's are, with what we added for them to learn, or
+privileged ones (StateEncoder), which read a state vector only training knows; the actor never reads it (SAC's
+docstring). Every hyper-parameter's
 default is the one tacrl.py trains with.
 """
 import copy
@@ -189,9 +190,12 @@ class TwinQ(nn.Module):
 
 @torch.no_grad()
 def act(enc, actor, obs, deterministic=False, device="cpu"):
-    """One env observation (unbatched dict of arrays) -> action (6,) in [-1, 1]."""
-    o = {k: torch.as_tensor(v[None], device=device) for k, v in obs.items()}
-    return actor(enc(o), deterministic, with_logp=False)[0][0].cpu().numpy()
+    """One env observation (a dict of arrays, pose_hist (HIST, 6)) -> action (6,) in [-1, 1]; a batch of them, each
+    array with a leading axis B (a vector env's: pose_hist (B, HIST, 6)) -> (B, 6)."""
+    one = np.ndim(obs["pose_hist"]) == 2
+    o = {k: torch.as_tensor(np.asarray(v)[None] if one else np.asarray(v), device=device) for k, v in obs.items()}
+    a = actor(enc(o), deterministic, with_logp=False)[0].cpu().numpy()
+    return a[0] if one else a
 
 
 # ---------------------------------------------------------------- replay buffer
@@ -312,12 +316,12 @@ TAU, INIT_ALPHA = 0.005, 0.1       # Polyak rate of the target critics; the temp
 class SAC:
     """SAC (Haarnoja et al. 2018) with twin Q, target critics (Polyak) and automatic temperature.
 
-    Critics, with state_dim 0: the paper's, twin Q on the multimodal encoder, which the actor reads with the
-    gradient stopped (SAC-AE, DrQ), as they learned best here (docs/CRITICS.md): a LayerNorm over each modality's
-    features and after each hidden layer of the Q heads (RLPD, Ball et al. 2023), and obs['extra'] (extra_dim,)
-    beside the features, what the agent knows and the actor does not read. With state_dim > 0, privileged (Pinto
-    et al. 2018; not the paper's): StateEncoder(obs), obs['state'] (state_dim,) included, and the actor has a
-    multimodal encoder of its own, trained by the actor loss. Either way o' is read by the critics' online encoder
+    Critics, with state_dim 0: multimodal, twin Q on the multimodal encoder as the paper's, which the actor reads
+    with the gradient stopped (SAC-AE, DrQ); ours besides, as they learned best here (docs/CRITICS.md): a LayerNorm
+    over each modality's features and after each hidden layer of the Q heads (RLPD, Ball et al. 2023), and
+    obs['extra'] (extra_dim,) beside the features, what the agent knows and the actor does not read. With
+    state_dim > 0, privileged (Pinto et al. 2018; not the paper's): StateEncoder(obs), obs['state'] (state_dim,)
+    included, and the actor has a multimodal encoder of its own, trained by the actor loss. Either way o' is read by the critics' online encoder
     without gradient (DrQ-v2, Yarats et al. 2021).
 
     On the CPU each multimodal encoder reads a batch as its two halves (encode, in_halves), with threads=2 side by
@@ -330,7 +334,7 @@ class SAC:
                  device="cpu"):
         self.device, self.gamma, self.extra_dim = torch.device(device), gamma, extra_dim
         self.helper = Helper(threads)        # threads=2: each multimodal encoder's batch as two halves, side by side
-        self.shared = not state_dim          # the paper's critics lend the actor their encoder
+        self.shared = not state_dim          # multimodal critics lend the actor their encoder, as the paper's
         enc = lambda norm: Encoder(obs_kind, pose_scale, wrench_scale, norm=norm,  # noqa: E731
                                    image_norm=image_norm).to(self.device)
         self.enc = StateEncoder(state_dim, pose_scale, wrench_scale).to(self.device) if state_dim else enc("modality")

@@ -32,6 +32,7 @@ DIGITS = {"delta": 4}           # metrics.csv's decimals where not 3 (losses: 5,
 TB_GROUPS = {"charts": ("return", "success", "sr15", "e_r_mm", "ex_r_mm", "delta", "steps", "total_steps", "updates"),
              "losses": ("q_loss", "pi_loss", "alpha", "entropy"), "time": ("env_s", "update_s", "elapsed_s")}
 TB_IMAGE_EVERY = 10          # episodes between the task-attention images sent to TensorBoard
+EVAL_LIKE = 15               # the last episodes whose env time the ETA takes for the evaluation's
 
 
 def save_atomic(obj, path):
@@ -243,9 +244,11 @@ class Run:
     the stop rule) and numpy Generators (their state); torch's RNG state is kept besides. buf: the replay
     buffer (its episodes go to replay/). After `Run(...)`: .episode, the first episode to run; .extended,
     whether a finished run is being trained on. Each episode: `lap('env')`, `lap('update')`, then `save(...)`.
+    probe_update: seconds an update takes, for the ETA before the first; eval_episodes: the episodes this process
+    plays in the evaluation after training, which the ETA counts at the last episodes' env time.
     """
 
-    def __init__(self, cfg, state, buf, log, probe_update=None):
+    def __init__(self, cfg, state, buf, log, probe_update=None, eval_episodes=0):
         self.cfg, self.state, self.buf, self.log = cfg, state, buf, log
         self.dir = cfg.run_dir
         self.files = ReplayFiles(os.path.join(self.dir, "replay"), buf.capacity, buf.obs)
@@ -276,7 +279,8 @@ class Run:
         if cfg.track:                                # CleanRL's convention: charts/, losses/; a resumed run hides
             from torch.utils.tensorboard import SummaryWriter    # what was written past its checkpoint
             self.tb = SummaryWriter(os.path.join(self.dir, "tb"), purge_step=self.episode + 1 if self.episode else None)
-        self.probe_update, self.laps, self.update_s = probe_update, {"env": [], "update": []}, []
+        self.probe_update, self.eval_episodes = probe_update, eval_episodes
+        self.laps, self.update_s = {"env": [], "update": []}, []
         self.t0, self.t_lap = time.time() - elapsed, time.time()       # (a resumed run's first lap starts now)
 
     def _load(self, path):
@@ -333,8 +337,11 @@ class Run:
                  f"({threads} thr)  elapsed {fmt_time(self.seconds())}  ETA {fmt_time(self.eta())}")
 
     def eta(self):
-        return eta_seconds(self.episode, self.cfg.train_episodes, self.cfg.warmup, self.laps["env"], self.update_s,
-                           self.probe_update or 0.0)
+        """Seconds left: the episodes still to train (eta_seconds), then the evaluation's, each as long as the last
+        EVAL_LIKE episodes' env time (the policy of the end plays it; the greedy one's episodes are no longer)."""
+        train = eta_seconds(self.episode, self.cfg.train_episodes, self.cfg.warmup, self.laps["env"], self.update_s,
+                            self.probe_update or 0.0)
+        return train + self.eval_episodes * float(np.mean(self.laps["env"][-EVAL_LIKE:]))
 
     def _track(self, row, episode):
         for group, keys in TB_GROUPS.items():

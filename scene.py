@@ -48,6 +48,7 @@ with quiet_c_output():
     import pybullet as p
     from pybullet_utils import bullet_client
 
+import tacrl_flat  # noqa: F401  (first: where another package shadows one of our modules, one line says so)
 import control as ctl
 from shapes import board_bumps, chamfer_boxes, gear_teeth, plate_boxes, quat_from_matrix, ring_boxes, to_world
 
@@ -141,7 +142,8 @@ R_DOWN = np.diag([1.0, -1.0, -1.0])                  # tool z down, tool x along
 # full camera view: 800 x 800 px (the paper's ROI-800*800), 90 deg, a wide-angle USB camera's (at 60 deg it
 # showed the board and little else: README difference 14); ROIs are windows of it
 CAM_FULL, CAM_FOV, CAM_NEAR, CAM_FAR = 800, 90.0, 0.01, 2.0
-VIDEO_W, VIDEO_H = 480, 360                          # px of the external view that videos show
+VIDEO_W, VIDEO_H = 640, 480                          # px of the external view that videos show (VGA: a browser
+                                                     # shows it whole; TinyRenderer takes ~0.1 s a frame here)
 
 WHITE, GREY, DARK, BLACK = (0.92, 0.92, 0.9, 1), (0.55, 0.55, 0.55, 1), (0.2, 0.2, 0.22, 1), (0.03, 0.03, 0.03, 1)
 WOOD = (0.62, 0.48, 0.34, 1)

@@ -4,6 +4,7 @@ need; numpy only (with control.py's rot_z). Each builder returns [(half extents 
 """
 import numpy as np
 
+import tacrl_flat  # noqa: F401  (first: where another package shadows one of our modules, one line says so)
 from control import rot_z
 
 

@@ -22,6 +22,7 @@ Watch the hand-designed policy alone: `python tacrl.py --task peg --eval initial
 import cv2
 import numpy as np
 
+import tacrl_flat  # noqa: F401  (first: where another package shadows one of our modules, one line says so)
 import control as ctl
 from contexts import FAMILIES, FAMILY_TEST_SEED0, context_of, family_context, held_out_family
 from scene import (APPROACH, CAM_FULL, CLEAR, CONTROL_HZ, CONTROL_PER_POLICY, FT_RANGE, IMG, POLICY_HZ, R_DOWN,
@@ -243,6 +244,7 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
         self.scene_rng = np.random.default_rng(0)     # the scenes' of a family or randomization (not the errors')
         self.roi = None
         self.t, self.steps = 0.0, 0
+        self.on_tick = None           # called after each controller tick where set (evaluate's video: its frames)
 
     def set_ranges(self, e_r, ex_r=None):
         """E_r (guidance error) and Ex_r (exploration) in m; the curriculum calls this between episodes."""
@@ -367,6 +369,8 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
             self.f_tick = w.tick(self.controller, self.t, self.f_tick, f_d)
             f_sum += self.f_tick
             self.t += 1.0 / CONTROL_HZ
+            if self.on_tick is not None:
+                self.on_tick()
         # The wrench the policy sees is the mean over the 0.2 s step: rigid contact makes the
         # per-tick reading chatter (impacts of 10-20 N between empty ticks) around the right mean.
         self.f_tool = f_sum / CONTROL_PER_POLICY

@@ -17,10 +17,18 @@ import json
 import os
 import signal
 import sys
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
+from typing import ClassVar
 
 if __name__ == "__main__":     # Ctrl-C while torch and pybullet load: one line and exit 130, not a traceback
     signal.signal(signal.SIGINT, lambda *_: (sys.stderr.write("\ntacrl: interrupted\n"), os._exit(130)))
+
+try:
+    import tacrl_flat  # noqa: E402, F401  (first: where another package shadows one of our modules, one line says so)
+except ImportError as e:
+    if __name__ != "__main__":
+        raise
+    sys.exit(str(e))
 
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
@@ -42,22 +50,20 @@ def train_opt(*args, **kw):                       # a flag for training only (re
 
 @dataclass
 class Config:
-    # what to run
+    # the task
     task: str = opt("peg", "peg (16 mm peg, 0.1 mm clearance) or gear (Sec. 5.1.1)", ("peg", "gear"))
-    eval: str = opt("", "evaluate, not train: initial (F_d = 0), two-step (baselines.py) or a policy.pt")
-    resume: str = train_opt("", "continue the run in this directory as its config.json says")
     seed: int = opt(0, "seeds the errors, the networks and the replay sampling", bounds=(0, 2 ** 31 - 1))
-    # the task (Sec. 5.1.1)
     error_mm: float = opt(20.0, "error range E_r in mm (Eq. 13-15): evaluated, or the curriculum's final one",
                           bounds=(0.0, 30.0))
-    context: str = opt("train", "board location and background (Sec. 5.1.4), or FAMILY:SEED, one scene of a family "
-                                f"({', '.join(contexts.FAMILIES)}), or FAMILY:test, a held-out one each episode",
+    context: str = opt("train", f"board location and background (Sec. 5.1.4: {', '.join(contexts.CONTEXTS)}), or "
+                                f"FAMILY:SEED, one scene of a family ({', '.join(contexts.FAMILIES)}), or "
+                                "FAMILY:test, a held-out one each episode",
                        contexts.ContextNames())
     roi: str = opt("task", "image window: task (Eq. 11's task attention) or a window of Fig. 11",
                    ("task", *sim.ROI_PRESETS))
     clearance_mm: float = opt(0.1, "diametral clearance of the peg or the gear's bore, mm", bounds=(0.0, 2.0),
                               open_bounds=True)
-    # Algorithm 1 (training only)
+    # the paper's protocol (training only)
     train_episodes: int = train_opt(300, "max-episodes of Algorithm 1: the most a run trains", bounds=(1, None))
     stop_held: int = train_opt(30, "stop when learned: after this many episodes at the final range, every 10 the "
                                    "greedy policy tries 20 there; 19 wins stop the run (0: never)",
@@ -68,8 +74,21 @@ class Config:
     curriculum: str = train_opt("adaptive", "error curriculum (Eq. 16, Fig. 10); ex10: Fig. 9's", curriculum.KINDS)
     vanilla: bool = train_opt(False, "the vanilla baseline, without a base policy: no trajectory, no spring, no "
                                      "stiffness from the estimated poses; F_d alone moves the tool")
-    critic: str = train_opt("privileged", "privileged: also X - X_g; multimodal: the paper's, also the time and the "
-                                          "curriculum's ranges (README difference 13)", ("privileged", "multimodal"))
+    updates: int = train_opt(200, "SAC gradient steps after each episode (Sec. 5.1.1: 200)", bounds=(0, None))
+    warmup: int = train_opt(20, "random-action episodes before the first update (the authors' loop: 20)",
+                            bounds=(0, None))
+    # SAC
+    critic: str = train_opt("privileged", "privileged: the critics also read X - X_g; multimodal: they read the "
+                                          "actor's observation as the paper's do, and (ours) the time, the "
+                                          "curriculum's ranges and LayerNorms (README difference 13)",
+                            ("privileged", "multimodal"))
+    batch: int = train_opt(64, "SAC batch size", bounds=(1, None))
+    buffer: int = train_opt(50000, "replay capacity, transitions (at least an episode and a batch)", bounds=(1, None))
+    lr: float = train_opt(3e-4, "Adam step size of actor, critics and temperature", bounds=(0, 1), open_bounds=True)
+    gamma: float = train_opt(0.95, "discount (0.99 let the critics thrash: README difference 10)", bounds=(0, 1),
+                             open_bounds=True)
+    target_entropy: float = train_opt(-6.0, "SAC's entropy target (the usual -|A|)")
+    # ours, beyond the paper
     augment: float = train_opt(0.0, "image jitter s: brightness, contrast x U(1-s, 1+s) (README difference 17)",
                                bounds=(0, 1))
     randomize: str = train_opt("", "draw each episode's scene from these families' training scenes, comma-separated "
@@ -79,36 +98,46 @@ class Config:
                                 policy.IMAGE_NORMS)
     tilt_deg: float = train_opt(0.0, "board tilt the stiffness about x and y leaves room for, deg (Eq. 8's range "
                                       "besides sim.EX_ROT; ours: 1 covers the touch family)", bounds=(0, 10))
-    updates: int = train_opt(200, "SAC gradient steps after each episode (Sec. 5.1.1: 200)", bounds=(0, None))
-    warmup: int = train_opt(20, "random-action episodes before the first update (the authors' loop: 20)",
-                            bounds=(0, None))
-    batch: int = train_opt(64, "SAC batch size", bounds=(1, None))
-    buffer: int = train_opt(50000, "replay capacity, transitions (at least an episode and a batch)", bounds=(1, None))
-    lr: float = train_opt(3e-4, "Adam step size of actor, critics and temperature", bounds=(0, 1), open_bounds=True)
-    gamma: float = train_opt(0.95, "discount (0.99 let the critics thrash: README difference 10)", bounds=(0, 1),
-                             open_bounds=True)
-    target_entropy: float = train_opt(-6.0, "SAC's entropy target (the usual -|A|)")
+    # evaluation
+    eval: str = opt("", "evaluate, not train: initial (F_d = 0), two-step (baselines.py), a policy.pt, or a run's "
+                        "ckpt.pt (its policy at its last episode)")
+    episodes: int = opt(20, "evaluation episodes a level (the paper: 20 test trials)", bounds=(1, None))
     eval_levels: str = train_opt("5,10,15,20", "error ranges (mm) evaluated after training (Table 2)")
+    json: str = opt("", "also write the evaluation row to this new JSON file", mode="eval")
+    video: str = opt("", "record the first evaluation episode from an external camera to this new .webm (VP9) or "
+                         ".mp4 (H.264, where OpenCV has it): a browser plays either", mode="eval")
+    # files and the machine
+    resume: str = train_opt("", "continue the run in this directory as its config.json says")
     run_dir: str = train_opt("", "run directory, new or empty (default: runs/<task>-<obs>-...-s<seed>)")
     track: bool = train_opt(False, "also log to TensorBoard in <run dir>/tb: metrics.csv's columns, the losses, now "
                                    "and then the task-attention image (pip install -e '.[track]'; tensorboard "
                                    "--logdir runs)")
-    # evaluation (Tables 1-2)
-    episodes: int = opt(20, "evaluation episodes a level (the paper: 20 test trials)", bounds=(1, None))
-    json: str = opt("", "also write the evaluation row to this new JSON file", mode="eval")
-    video: str = opt("", "record the first evaluation episode from an external camera to this new .webm (VP9) or "
-                         ".mp4 (H.264, where OpenCV has it): a browser plays either", mode="eval")
-    # the machine
     device: str = opt("auto", "where torch runs", ("auto", "cpu", "cuda"))
     threads: int = opt(0, "CPU cores a run uses: an update's two halves of each batch side by side and evaluation's "
                           "episodes in two processes (2), or one after the other (1), the same numbers either way "
                           "(0: 2 where there are 2 cores)", bounds=(0, 2))
     gui: bool = opt(False, "open the PyBullet window")
+    # --help lists the flags under these titles (cli.parse), and the run prints its config so (cli.format_config)
+    GROUPS: ClassVar[dict] = {
+        "the task (Sec. 5.1.1)": ("task", "seed", "error_mm", "context", "roi", "clearance_mm"),
+        "the paper's protocol (Algorithm 1, Sec. 5.1)": ("train_episodes", "stop_held", "obs", "curriculum",
+                                                         "vanilla", "updates", "warmup"),
+        "SAC (Sec. 4.3.2; what the paper leaves open: README difference 10)": ("critic", "batch", "buffer", "lr",
+                                                                                "gamma", "target_entropy"),
+        "ours, off by default (README difference 17)": ("augment", "randomize", "image_norm", "tilt_deg"),
+        "evaluation (Tables 1-2)": ("eval", "episodes", "eval_levels", "json", "video"),
+        "files and the machine": ("resume", "run_dir", "track", "device", "threads", "gui"),
+    }
 
     @property
     def families(self):
         """--randomize's families, a tuple."""
         return tuple(f for f in self.randomize.split(",") if f)
+
+    @property
+    def levels(self):
+        """--eval-levels, mm, sorted."""
+        return sorted({float(x) for x in self.eval_levels.split(",")})
 
     @property
     def tilt(self):
@@ -118,7 +147,7 @@ class Config:
 
 POSE_SCALE = np.array([sim.E_R_FINAL] * 3 + [sim.E_ROT_FINAL] * 3)   # m, rad: the encoders' pose units
 STATE_DIM = 7                                                        # what privileged critics read (critic_state)
-EXTRA_DIM = 3                                                        # the paper's critics' extras (critic_extra)
+EXTRA_DIM = 3                                                        # multimodal critics' extras (critic_extra)
 VAL_SEED, VAL_EPISODES, VAL_WINS, VAL_EVERY = 2000, 20, 19, 10   # stop when learned: 19 of 20
 
 
@@ -135,8 +164,9 @@ def train(cfg, log=lambda msg: print(msg, flush=True)):
     sac, stop, rng = make_sac(cfg), StopRule(cfg), np.random.default_rng(cfg.seed + 1)   # (rng: replay sampling)
     buf = policy.ReplayBuffer(cfg.buffer, obs_shapes(cfg))                                     # R
     run = rundir.Run(cfg, {"sac": sac, "curriculum": curr, "stop": stop, "env_rng": env.np_random, "sample_rng": rng},
-                     buf, log, probe_update=cfg.updates * rundir.update_seconds(sac, zero_batch(buf, cfg)))
-    log(f"config: {asdict(cfg)}")
+                     buf, log, probe_update=cfg.updates * rundir.update_seconds(sac, zero_batch(buf, cfg)),
+                     eval_episodes=len(cfg.levels) * -(-cfg.episodes // sac.helper.threads))   # (a worker: half)
+    log(cli.format_config(cfg))
     log(f"parameters: {sac.parameter_counts()}; {cfg.device}" + (f", {sac.helper.threads} threads an update"
                                                                   if cfg.device == "cpu" else ""))
     with evaluate.second_core(sac.helper.threads, sac.device) as worker:    # validation and evaluation on 2 cores
@@ -165,7 +195,7 @@ def train(cfg, log=lambda msg: print(msg, flush=True)):
         finally:
             env.close()
             run.close()
-        return finish(cfg, sac, curr, env.e_r_max, run.seconds(), log, worker)
+        return finish(cfg, sac, curr, run.seconds(), log, worker)
 
 
 def rollout(env, act, seed=None):
@@ -204,7 +234,7 @@ def critic_state(info):
 
 
 def critic_extra(info):
-    """What the paper's critics (--critic multimodal) read besides the actor's observation, obs['extra'] (EXTRA_DIM,)
+    """What multimodal critics (--critic multimodal) read besides the actor's observation, obs['extra'] (EXTRA_DIM,)
     (README difference 13): the time as a fraction of the episode and the curriculum's E_r and Ex_r over the final
     range, all of which the agent knows (the reward's W and the time left change with them)."""
     return np.array([info["t"] * sim.POLICY_HZ / sim.MAX_STEPS, info["e_r"] / sim.E_R_FINAL,
@@ -277,19 +307,40 @@ def validate(cfg, sac, curr, worker=None):
     return round(row["success_rate"] * VAL_EPISODES)
 
 
-def finish(cfg, sac, curr, e_r_max, seconds, log, worker=None):
+def policy_meta(cfg, curr):
+    """What evaluation must know of training (policy.pt's meta): the task, encoder and view, the base policy, Ex_r
+    where the curriculum stands, the largest E_r the view was made for (Eq. 11) and the tilt's room."""
+    return {"task": cfg.task, "obs": cfg.obs, "roi": cfg.roi, "vanilla": cfg.vanilla, "ex_r": float(curr.ranges()[1]),
+            "e_r_max": max(sim.E_R_FINAL, cfg.error_mm / 1000), "tilt": cfg.tilt}
+
+
+def checkpoint_policy(path, ckpt):
+    """A run's ckpt.pt (its contents, `ckpt`) -> the policy file its actor makes now (evaluate.policy_file), with
+    the run's config.json beside it: the policy of a run that is unfinished or was interrupted. ValueError where
+    the config cannot be read."""
+    cfg = read_config(os.path.dirname(os.path.abspath(path)))
+    sac, curr = make_sac(cfg, "cpu"), curriculum.Curriculum(cfg.curriculum, final=cfg.error_mm / 1000)
+    sac.load_state_dict(ckpt["sac"])
+    curr.load_state_dict(ckpt["curriculum"])
+    return evaluate.policy_file(sac, policy_meta(cfg, curr))
+
+
+def load_policy(path, device="cpu"):
+    """A policy.pt, or a run's ckpt.pt, as an evaluate.TrainedPolicy: act(obs) -> action, one observation or a
+    batch. ValueError saying what is wrong with a file that is neither."""
+    return evaluate.load_policy(path, device, from_checkpoint=checkpoint_policy)
+
+
+def finish(cfg, sac, curr, seconds, log, worker=None):
     """policy.pt (with what evaluation must know of training), curves.png and eval.json: held-out seeds."""
     policy_path = os.path.join(cfg.run_dir, "policy.pt")
-    evaluate.save_policy(policy_path, sac, {"task": cfg.task, "obs": cfg.obs, "roi": cfg.roi, "vanilla": cfg.vanilla,
-                                          "ex_r": float(curr.ranges()[1]), "e_r_max": float(e_r_max),
-                                          "tilt": cfg.tilt})
+    evaluate.save_policy(policy_path, sac, policy_meta(cfg, curr))
     rundir.plot_curves(cfg.run_dir, f"{cfg.task}, {cfg.obs}, {cfg.curriculum}")
     pi = evaluate.load_policy(policy_path, sac.device)
-    levels = sorted({float(x) for x in cfg.eval_levels.split(",")})
     with evaluate.eval_env(cfg.task, pi, cfg.context, cfg.roi, cfg.clearance_mm, gui=cfg.gui) as env:
         show = lambda row: log(evaluate.format_row(f"TA-MRP {cfg.task} {row['error_mm']:g}mm", row))   # noqa: E731
-        rows = evaluate.evaluate_levels(env, pi, levels, cfg.episodes, evaluate.EVAL_SEED + cfg.seed, log=show,
-                                        worker=worker)
+        rows = evaluate.evaluate_levels(env, pi, cfg.levels, cfg.episodes, evaluate.EVAL_SEED + cfg.seed, log=show,
+                                        worker=worker, progress=log)
     trained = len(rundir.read_metrics(cfg.run_dir)["episode"])     # fewer than --train-episodes if stopped as learned
     result = {"task": cfg.task, "obs": cfg.obs, "curriculum": cfg.curriculum, "context": cfg.context, "roi": cfg.roi,
               "seed": cfg.seed, "eval_seed": evaluate.EVAL_SEED + cfg.seed, "train_episodes": trained,
@@ -303,7 +354,7 @@ def finish(cfg, sac, curr, e_r_max, seconds, log, worker=None):
 # ---------------------------------------------------------------- the command line (command.py)
 def parse_args(argv):
     """argv -> a checked Config (command.parse_args: a flag that would not apply is a mistake)."""
-    return command.parse_args(Config, argv, __doc__.split("\n\n")[0])
+    return command.parse_args(Config, argv, "\n\n".join(__doc__.split("\n\n")[:2]))    # what it is, the commands
 
 
 def read_config(run_dir):
@@ -314,7 +365,7 @@ def read_config(run_dir):
 def main(argv=None):
     def run(cfg):
         try:
-            return command.run_evaluation(cfg) if cfg.eval else train(cfg)
+            return command.run_evaluation(cfg, load_policy) if cfg.eval else train(cfg)
         except rundir.RunError as e:               # a run dir that cannot be continued as it is
             raise ArgError(f"--resume {cfg.run_dir!r}: {e}")
     return cli.command("tacrl", lambda: run(parse_args(sys.argv[1:] if argv is None else list(argv))))

@@ -8,10 +8,10 @@ import subprocess
 import sys
 
 import cv2
+import evaluate
 import pytest
 
 import scene
-import sim
 import tacrl
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -62,6 +62,30 @@ def test_each_flag_is_described_once_in_help(capsys):
         assert flag in text and "".join(f.metadata["help"].split()) in text, flag
 
 
+def test_help_lists_each_flag_under_its_group(capsys):
+    with pytest.raises(SystemExit):
+        tacrl.parse_args(["--help"])
+    lines = capsys.readouterr().out.split("\n")
+    heads = {title: lines.index(title + ":") for title in tacrl.Config.GROUPS}      # each title a heading
+    assert list(heads.values()) == sorted(heads.values())
+    ends = dict(zip(heads, list(heads.values())[1:] + [len(lines)]))
+    for title, names in tacrl.Config.GROUPS.items():
+        section = [x.split()[0] for x in lines[heads[title] + 1:ends[title]] if x.startswith("  --")]
+        assert section == ["--" + n.replace("_", "-") for n in names], title
+
+
+def test_a_module_another_package_shadows_is_one_line_naming_it(tmp_path):
+    # python-control's `control` (or Hugging Face's `evaluate`) installed before ours on the path
+    (tmp_path / "control").mkdir()
+    (tmp_path / "control" / "__init__.py").write_text("")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(tmp_path), ROOT])}
+    for argv in (["-c", "import sim"], ["-m", "tacrl", "--task", "peg"]):
+        p = subprocess.run([sys.executable, *argv], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=60)
+        last = p.stderr.strip().split("\n")[-1]
+        assert p.returncode != 0 and "control" in last and str(tmp_path / "control") in last, p.stderr
+        assert argv[0] == "-c" or p.stderr.count("\n") == 1           # the command: that line alone
+
+
 def test_initial_policy_row_json_and_a_video_browsers_play(tmp_path, capsys, monkeypatch):
     out, video = tmp_path / "row.json", tmp_path / "ep.webm"
     monkeypatch.setattr(scene, "VIDEO_W", 160)            # small frames: at 480 x 360, their renders and their
@@ -80,11 +104,13 @@ def test_initial_policy_row_json_and_a_video_browsers_play(tmp_path, capsys, mon
     cap = cv2.VideoCapture(str(video))
     fourcc = int(cap.get(cv2.CAP_PROP_FOURCC)).to_bytes(4, "little")
     size = (cap.get(cv2.CAP_PROP_FRAME_WIDTH), cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
-    frames = 0
+    cap_fps, frames = cap.get(cv2.CAP_PROP_FPS), 0
     while cap.read()[0]:
         frames += 1
     cap.release()
-    assert fourcc == b"VP90" and size == (160, 120) and frames == round(row["completion_time_s"][0] * sim.POLICY_HZ)
+    assert fourcc == b"VP90" and size == (160, 120) and evaluate.VIDEO_FPS >= 20
+    assert frames == round(row["completion_time_s"][0] * evaluate.VIDEO_FPS)        # the simulation's own time
+    assert cap_fps == evaluate.VIDEO_FPS
 
 
 def test_a_video_format_this_opencv_cannot_write_is_one_line_before_any_work(tmp_path, capsys):

@@ -111,14 +111,13 @@ MISTAKES = {   # a few of each kind; the files they point at are in `workdir`
     "--resume with flags it cannot honour": [["--resume", "run", "--lr", "0.1"],
                                              ["--resume", "run", "--train-episodes", "1"]],
     "a policy file that is not one, or not for this": [["--eval", "empty.pt"], ["--eval", "pickled.pt"],
-                                                        ["--eval", "run/ckpt.pt"],
+                                                        ["--eval", "emptyckpt/ckpt.pt"],
                                                         ["--eval", "run/policy.pt", "--error-mm", "25"]],
     "a file to write that exists or cannot be written": [["--eval", "initial", "--json", "row.json"],
                                                          ["--eval", "initial", "--video", "no/such/ep.webm"],
                                                          ["--eval", "initial", "--json", "/proc/row.json"]],
     "a flag of the other mode, or one that would change nothing": [["--eval", "initial", "--lr", "0.1"],
-                                                                   ["--json", "x.json"], ["--train-episode", "5"],
-                                                                   ["--q-norm"], ["--aux-offset", "10"]],   # (retired)
+                                                                   ["--json", "x.json"], ["--train-episode", "5"]],
     "a window without a display": [["--eval", "initial", "--gui"]],
 }
 

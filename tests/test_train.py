@@ -113,9 +113,15 @@ def test_track_without_tensorboard_is_one_line_naming_the_extra(monkeypatch, cap
     assert err.count("\n") == 1 and "--track" in err and ".[track]" in err and not os.path.exists("runs")
 
 
-def test_start_up_lines_give_the_config_and_the_parameter_counts(tiny_run):
-    assert tiny_run["first"][0].startswith("config: {'task': 'peg'")
-    assert tiny_run["first"][1].startswith("parameters: actor ") and "critics " in tiny_run["first"][1]
+def test_start_up_lines_give_the_config_by_group_and_the_parameter_counts(tiny_run):
+    config, params = tiny_run["first"][0].split("\n"), tiny_run["first"][1]
+    assert config[0] == "config:" and all(len(x) <= 110 for x in config)
+    words = " ".join(config).split()
+    for title in tacrl.Config.GROUPS:                           # each group's title once, its flags as typed
+        assert " ".join(config).count(title.split(" (")[0]) == 1, title
+    for flag, value in zip(TINY[::2], TINY[1::2]):
+        assert words[words.index(flag) + 1] == value, flag
+    assert params.startswith("parameters: actor ") and "critics " in params
 
 
 def test_a_kill_loses_only_the_episode_in_flight(tiny_run):
@@ -159,6 +165,33 @@ def test_evaluating_policy_pt_repeats_eval_json(tiny_run, tmp_path, monkeypatch)
                        "--episodes", "1", "--json", str(again)]) == 0
     keys = ("success_rate", "cumulative_reward", "contact_force_x_N", "contact_force_y_N", "contact_force_z_N")
     assert {k: ev["rows"][0][k] for k in keys} == {k: json.loads(again.read_text())[k] for k in keys}
+
+
+def test_the_evaluation_after_training_shows_each_episode_and_its_eta_counts_the_levels_to_come(tiny_run):
+    evals = [x for x in tiny_run["second"] if x.startswith("eval ")]
+    assert len(evals) == 1 and evals[0].startswith("eval 1 mm  episode 1/1 ") and " ETA " in evals[0]
+    # and the training's ETA counts the evaluation: every level's episodes that this process plays, each as long as
+    # the last episodes' env time
+    run = rundir.Run.__new__(rundir.Run)
+    run.cfg, run.episode, run.laps, run.update_s, run.probe_update = tacrl.Config(train_episodes=10, warmup=0), 10, \
+        {"env": [9.0] * 5 + [2.0] * rundir.EVAL_LIKE}, [1.0], 1.0
+    run.eval_episodes = 40
+    assert run.eta() == pytest.approx(40 * 2.0)
+
+
+def test_a_checkpoint_is_a_policy_too_and_a_policy_takes_a_batch(tiny_run, monkeypatch):
+    # a run's ckpt.pt plays what its policy.pt plays (both of its last episode), as tacrl.load_policy and --eval read
+    # it; and a vector env's batch of observations gives each its own action
+    monkeypatch.setattr(sim, "MAX_STEPS", SHORT)
+    pi, ck = (tacrl.load_policy(os.path.join(tiny_run["dir"], f)) for f in ("policy.pt", "ckpt.pt"))
+    assert ck.meta == pi.meta
+    with evaluate.eval_env("peg", pi, e_r_mm=1.0) as env:
+        obs = [env.reset(seed=s)[0] for s in (0, 1, 2)]
+    batch = {k: np.stack([o[k] for o in obs]) for k in obs[0]}
+    assert np.array_equal(pi(obs[1]), ck(obs[1]))
+    assert pi(batch).shape == (3, 6) and np.allclose(pi(batch), np.stack([pi(o) for o in obs]), atol=1e-6)
+    with pytest.raises(ValueError, match="cannot load"):
+        evaluate.load_policy(os.path.join(tiny_run["dir"], "ckpt.pt"))     # without tacrl's reader of checkpoints
 
 
 def test_a_worker_process_plays_every_other_episode_and_the_row_is_the_same(monkeypatch):
