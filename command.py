@@ -25,10 +25,10 @@ from cli import (ArgError, check_bounds, check_dir_writable, check_new_file, des
 RESUME_MAY_SET = ("resume", "train_episodes", "stop_held", "threads", "track")   # to extend a run; nothing else changes
 NOT_LEARNING = ("eval", "resume", "run_dir", "track", "threads", "device", "gui", "episodes", "json", "video",
                 "eval_levels", "train_episodes", "stop_held")     # how a run is run, evaluated or extended
-# The critics study's flags (issues 31 and 50; docs/CRITICS.md) and their defaults, retired to the git tag
-# STUDY_TAG. A run dir written before reads on where they have the values under which it computes what today's
+# The critics study's flags (issues 31 and 50; docs/critics.md) and their defaults, retired to commit
+# STUDY_COMMIT. A run dir written before reads on where they have the values under which it computes what today's
 # code does: these, and for --critic multimodal, STUDY_MULTIMODAL (the setting that learned best, today's).
-STUDY_TAG = "critics-study (612813e)"
+STUDY_COMMIT = "612813e"
 STUDY_DEFAULTS = {"shift": 0, "drq": 1, "critic_extra": False, "next_encoder": "target", "nstep": 1, "aux_reward": 0.0,
                   "aux_offset": 0.0, "actor_encoder": "shared", "fusion_norm": "joint", "image_encoder": "cnn",
                   "q_norm": False, "q_dropout": 0.0, "q_heads": 2, "reset": 0, "aux_wrench": 0.0, "aux_recon": 0.0,
@@ -187,7 +187,7 @@ def default_run_dir(cfg):
 
 def study_options(d):
     """Pops the critics study's flags from a config dict; returns those whose values today's code does not compute
-    (such a run is the study's: its code is on the git tag STUDY_TAG)."""
+    (such a run is the study's: its code is commit STUDY_COMMIT)."""
     study = {k: d.pop(k) for k in list(d) if k in STUDY_DEFAULTS}
     now = {**STUDY_DEFAULTS, **(STUDY_MULTIMODAL if d.get("critic") == "multimodal" else {})}
     return {k: v for k, v in {**STUDY_DEFAULTS, **study}.items() if v != now[k]} if study else {}
@@ -199,7 +199,7 @@ def read_config(config_cls, run_dir):
     d = rundir.read_config(run_dir)
     study = study_options(d)
     if study:
-        raise ValueError(f"a run of the critics study ({', '.join(study)}): its code is git tag {STUDY_TAG}")
+        raise ValueError(f"a run of the critics study ({', '.join(study)}): its code is commit {STUDY_COMMIT}")
     return from_dict(config_cls, d)
 
 

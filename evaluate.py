@@ -56,7 +56,7 @@ class TrainedPolicy:
         self.device = device
         if (d.get("image_encoder", "cnn"), d.get("image_feat", policy.FEAT)) != ("cnn", policy.FEAT):
             raise ValueError(f"its image encoder ({d['image_encoder']}, {d['image_feat']}-d) is the critics study's "
-                             "(docs/CRITICS.md names the git tag that reads it)")
+                             "(docs/critics.md names the commit that reads it)")
         # (files before 'norm' and 'image_norm': joint, fixed). The layers' first weights, overwritten at once, are
         # drawn on a fork of torch's generator: a training run that copies its policy to validate it trains on as if
         # it had not (tacrl.validate)
@@ -91,13 +91,19 @@ def load_policy(path, device="cpu", from_checkpoint=None):
     return pi
 
 
+def env_kwargs(pi):
+    """sim.AssemblyEnv's keyword arguments for a TrainedPolicy: the view, Ex_r, tilt and X_i it was trained for, with
+    its guidance (none for the vanilla baseline) and, for keypoint RL, the keypoint. gym.make takes them too."""
+    m = pi.meta
+    return dict(roi=m.get("roi", "task"), ex_r=m.get("ex_r"), e_r_max=m.get("e_r_max"),
+                base_policy=not m.get("vanilla", False),
+                keypoint=m.get("obs") == "ts-ptk", tilt=m.get("tilt", 0.0))      # (files before tilt: 0)
+
+
 def eval_env(task, act, context="train", roi="task", clearance_mm=0.1, e_r_mm=0.0, gui=False):
-    """The env to evaluate `act` in; a TrainedPolicy's at the Ex_r, tilt, ROI and X_i it was trained for, with its
-    guidance."""
-    m = act.meta if isinstance(act, TrainedPolicy) else {}
-    return sim.AssemblyEnv(task, context, e_r=e_r_mm / 1000, ex_r=m.get("ex_r"), roi=roi, clearance=clearance_mm / 1000,
-                           gui=gui, base_policy=not m.get("vanilla", False), e_r_max=m.get("e_r_max"),
-                           keypoint=m.get("obs") == "ts-ptk", tilt=m.get("tilt", 0.0))     # (files before tilt: 0)
+    """The env to evaluate `act` in at E_r `e_r_mm`; a TrainedPolicy's as env_kwargs gives it (its view: `roi`)."""
+    kw = {**env_kwargs(act), "roi": roi} if isinstance(act, TrainedPolicy) else {"roi": roi}
+    return sim.AssemblyEnv(task, context, e_r=e_r_mm / 1000, clearance=clearance_mm / 1000, gui=gui, **kw)
 
 
 def episode_seed(seed, k):

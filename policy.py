@@ -44,7 +44,7 @@ def mlp(n_in, n_out, hidden=(256, 256), norm=False):
 
 # ---------------------------------------------------------------- the multimodal encoder
 IMAGE_NORMS = ("fixed", "image")
-NORMS_TAG = "image-norm-local (142e412)"   # the local norm's git tag (issue 53: it lost to the image norm)
+NORMS_COMMIT = "142e412"       # the commit that holds --image-norm local (issue 53: it lost to the image norm)
 
 
 def pixels(img, norm="fixed"):
@@ -96,8 +96,8 @@ class Encoder(nn.Module):
                  image_norm="fixed"):
         super().__init__()
         if image_norm not in IMAGE_NORMS:
-            raise ValueError(f"unknown image normalisation {image_norm!r} ({', '.join(IMAGE_NORMS)}; others: git tag "
-                             f"{NORMS_TAG})")
+            raise ValueError(f"unknown image normalisation {image_norm!r} ({', '.join(IMAGE_NORMS)}; others: commit "
+                             f"{NORMS_COMMIT})")
         if kind not in OBS_KINDS:
             raise ValueError(f"unknown observation kind {kind!r} ({', '.join(OBS_KINDS)})")
         self.kind, self.norm_kind, self.image_norm = kind, norm, image_norm
@@ -317,7 +317,7 @@ class SAC:
     """SAC (Haarnoja et al. 2018) with twin Q, target critics (Polyak) and automatic temperature.
 
     Critics, with state_dim 0: multimodal, twin Q on the multimodal encoder as the paper's, which the actor reads
-    with the gradient stopped (SAC-AE, DrQ); ours besides, as they learned best here (docs/CRITICS.md): a LayerNorm
+    with the gradient stopped (SAC-AE, DrQ); ours besides, as they learned best here (docs/critics.md): a LayerNorm
     over each modality's features and after each hidden layer of the Q heads (RLPD, Ball et al. 2023), and
     obs['extra'] (extra_dim,) beside the features, what the agent knows and the actor does not read. With
     state_dim > 0, privileged (Pinto et al. 2018; not the paper's): StateEncoder(obs), obs['state'] (state_dim,)

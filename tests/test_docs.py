@@ -1,40 +1,44 @@
-"""The README's code map says how long each file is; a reader sizes the project by it, so it must be true."""
+"""The README and docs/ as a reader meets them: every block the report makes has its place in a page, each block is
+closed, prose lines fit 120 columns (a figure's line in docs/ aside), and every link between the pages leads somewhere. (Their numbers are the
+report's: `python tools/report.py --check` compares them with the archive; CI runs it.)"""
+import glob
 import os
 import re
 
+import pages
+import results
+import scenes
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+PAGES = [os.path.join(ROOT, "README.md")] + sorted(glob.glob(os.path.join(ROOT, "docs", "*.md")))
+OTHER_BLOCKS = ("code-map", "critics-runs", "objects")       # report.py's code map, compare.py's, objects.py's
 
 
-def lines_of(path):
-    """Lines of a file, or of a folder's .py files together."""
-    paths = [os.path.join(path, f) for f in sorted(os.listdir(path)) if f.endswith(".py")] if os.path.isdir(path) \
-        else [path]
-    total = 0
-    for p in paths:
-        with open(p) as f:
-            total += sum(1 for _ in f)
-    return total
-
-
-def test_the_readme_code_map_gives_each_file_its_line_count():
-    with open(os.path.join(ROOT, "README.md")) as f:
-        rows = re.findall(r"^\| `([\w./]+)` \| (\d+) \|", f.read(), re.M)
-    assert len(rows) >= 9, "the code map's rows were not found"
-    counted = {f: (int(n), lines_of(os.path.join(ROOT, f))) for f, n in rows}
-    wrong = {f: said_now for f, said_now in counted.items() if said_now[0] != said_now[1]}
-    assert not wrong, f"README says {{file: (lines said, lines now)}}: {wrong}"
-
-
-def test_the_readme_holds_the_places_the_report_writes_its_numbers_in():
-    """The report makes the README's result tables and its sentences of results anew in place (report.py --readme):
-    each must be where it looks for it."""
-    import sys
-    sys.path.insert(0, os.path.join(ROOT, "tools"))
-    import report
-    path = os.path.join(ROOT, "README.md")
-    for caption in (report.README_TABLE1, report.README_CONTEXTS, report.README_FAMILIES):
-        assert len(report.readme_table(path, caption)) >= 3, caption        # a header, its rule, a row
+def read(path):
     with open(path) as f:
-        text = f.read()
-    for name, (pattern, _) in report.README_SENTENCES.items():
-        assert pattern.search(text), name
+        return f.read()
+
+
+def test_every_block_the_report_makes_has_a_page_and_each_block_is_closed():
+    held = {}
+    for p in PAGES:
+        text = read(p)
+        assert len(pages.blocks(text)) == text.count("<!-- report: ") == text.count("<!-- end -->"), p
+        held.update(dict.fromkeys(pages.blocks(text), p))
+    missing = {*results.BLOCKS, *scenes.BLOCKS, *OTHER_BLOCKS} - set(held)
+    assert not missing, sorted(missing)
+
+
+def test_prose_fits_120_columns_and_links_between_pages_lead_somewhere():
+    for p in PAGES:
+        if p.endswith("HISTORY.md"):                      # the account, kept as written
+            continue
+        fenced = False
+        for line in read(p).split("\n"):
+            fenced ^= line.startswith("```")
+            figure = line.startswith("![") and not p.endswith("README.md")     # a file's long name in docs/
+            assert fenced or figure or line.startswith("|") or len(line) <= 120, (p, line[:60])
+        for target in re.findall(r"\]\(([^)#\s]+)", read(p)):
+            if "://" in target or target.startswith(("results/", "../results/")):   # the archive: not read by tests
+                continue
+            assert os.path.exists(os.path.join(os.path.dirname(p), target)), (p, target)

@@ -9,7 +9,10 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
+import evaluate
+import scene
 import sim  # noqa: F401  (importing sim registers the envs)
+import tacrl
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -40,7 +43,7 @@ def test_registered_env_steps_through_gymnasium_wrappers_and_renders():
     obs, r, term, trunc, info = env.step(env.action_space.sample())
     assert isinstance(r, float) and not term and not trunc
     frame = env.render()
-    assert frame.shape == (360, 480, 3) and frame.dtype == np.uint8 and frame.std() > 5
+    assert frame.shape == (scene.VIDEO_H, scene.VIDEO_W, 3) and frame.dtype == np.uint8 and frame.std() > 5
     env.close()
     env.close()                                          # closing twice is allowed
 
@@ -67,3 +70,19 @@ def test_async_vector_env_gives_what_single_envs_give_on_the_same_seeds():
             assert r is None or r_vec[i] == r
             for k in o:
                 assert np.array_equal(o_vec[k][i], o[k]), (seed, k)
+
+
+def test_a_saved_policy_drives_the_registered_env_as_it_was_trained(tmp_path):
+    # the README's use from Python: tacrl.load_policy, the env made with evaluate.env_kwargs, one observation or a
+    # vector env's batch of them (the batch as gymnasium stacks it)
+    sac = tacrl.make_sac(tacrl.parse_args(["--task", "peg", "--threads", "1", "--roi", "full"]))
+    meta = {"task": "peg", "obs": "ts-ptv", "roi": "full", "vanilla": False, "ex_r": 0.004, "e_r_max": 0.02}
+    evaluate.save_policy(str(tmp_path / "policy.pt"), sac, meta)
+    pi = tacrl.load_policy(str(tmp_path / "policy.pt"))
+    env = gym.make("tacrl/PegInsertion-v0", **evaluate.env_kwargs(pi))
+    assert (env.unwrapped.roi_name, env.unwrapped.ex_r) == ("full", 0.004)        # the view and Ex_r it trained with
+    obs = [env.reset(seed=s)[0] for s in (0, 1)]
+    batch = {k: np.stack([o[k] for o in obs]) for k in obs[0]}
+    assert pi(obs[0]).shape == (6,) and np.allclose(pi(batch), [pi(o) for o in obs], atol=1e-6)
+    assert env.action_space.contains(pi(obs[0]).astype(np.float32))
+    env.close()

@@ -1,12 +1,14 @@
-"""report.py's bookkeeping: which of the paper's comparisons a run joins, the command that reproduces
-it."""
+"""The report's bookkeeping (tools/runs.py, results.py, scenes.py): which of the paper's comparisons a run joins, the
+command that reproduces it, the tables it makes of them and what it calls each setting."""
 import dataclasses
 import re
 
 import numpy as np
 import pytest
 
-import report
+import results
+import runs
+import scenes
 import tacrl
 
 @pytest.mark.parametrize("changes, expected", [
@@ -27,15 +29,15 @@ import tacrl
 def test_report_families(changes, expected):
     """Which of the paper's comparisons (Table 1, Fig. 9, 10, 11) a run's curves join in the report."""
     cfg = {**dataclasses.asdict(tacrl.Config()), **changes}
-    assert report.families(cfg) == expected
+    assert runs.families(cfg) == expected
 
 
 def test_report_command_of_a_run():
     """The runs table gives each run the command that reproduces it: the flags off their defaults."""
     cfg = {**dataclasses.asdict(tacrl.Config()), "vanilla": True, "error_mm": 30.0, "seed": 2, "threads": 1,
            "run_dir": "runs/x"}
-    assert report.command_of(cfg) == "python tacrl.py --task peg --seed 2 --error-mm 30 --vanilla"
-    assert tacrl.parse_args(report.command_of(cfg).split()[2:]).vanilla
+    assert runs.command_of(cfg) == "python tacrl.py --task peg --seed 2 --error-mm 30 --vanilla"
+    assert tacrl.parse_args(runs.command_of(cfg).split()[2:]).vanilla
 
 
 @pytest.mark.parametrize("critic, study, today", [
@@ -46,19 +48,19 @@ def test_report_command_of_a_run():
     ("multimodal", {}, True),                                                            # written today
 ])
 def test_a_run_of_the_critics_study_reads_in_the_report_and_nowhere_else(tmp_path, critic, study, today):
-    """The study's flags left the core for a git tag: a run dir that used them is refused by what would train or
+    """The study's flags left the core for a commit: a run dir that used them is refused by what would train or
     rebuild it, and the report describes it by the flags in which it differs from today's code."""
     import json
     cfg = {**dataclasses.asdict(tacrl.Config()), "critic": critic, **study}
     (tmp_path / "config.json").write_text(json.dumps(cfg))
     if today:
         assert tacrl.read_config(str(tmp_path)).critic == critic
-        assert report.method_of(report.read_config(str(tmp_path))) == ("ours" if critic == "privileged" else
-                                                                        "ours (critic multimodal)")
+        assert runs.method_of(runs.read_config(str(tmp_path))) == ("ours" if critic == "privileged" else
+                                                                    "ours (critic multimodal)")
     else:
-        with pytest.raises(ValueError, match="critics-study"):
+        with pytest.raises(ValueError, match="612813e"):
             tacrl.read_config(str(tmp_path))
-        assert "q_norm" in report.method_of(report.read_config(str(tmp_path)))
+        assert "q_norm" in runs.method_of(runs.read_config(str(tmp_path)))
 
 
 @pytest.mark.parametrize("changes, episodes, expected", [
@@ -72,34 +74,34 @@ def test_a_run_of_the_critics_study_reads_in_the_report_and_nowhere_else(tmp_pat
 def test_a_comparison_takes_the_runs_of_its_budget_alone(changes, episodes, expected):
     """Every row of one of the paper's comparisons trained the same number of episodes, as the paper's rows."""
     run = {"cfg": {**dataclasses.asdict(tacrl.Config()), **changes}, "m": {"episode": list(range(1, episodes + 1))}}
-    assert set(report.fam_of(run)) == expected
+    assert set(runs.fam_of(run)) == expected
 
 
 def test_an_ablation_in_numbers_has_a_row_a_setting_over_its_seeds():
-    """Figs. 9-11 in numbers: each setting's cells are over its seeds, seed by seed in brackets; a run that never
+    """Figs. 9-11 in numbers: each setting's cells are over its seeds, seed by seed where said; a run that never
     reached its final range says so; one setting alone is no comparison."""
     def run(obs, seed, e_r_most, trained, sr):
         cfg = {**dataclasses.asdict(tacrl.Config()), "task": "gear", "obs": obs, "curriculum": "ex10", "seed": seed,
                "stop_held": 0, "train_episodes": 200}
         e_r = np.minimum(np.arange(200) * 0.25, e_r_most)           # mm, reaches 20 at episode 81 where it may
         m = {"episode": np.arange(1, 201), "e_r_mm": e_r, "success": np.r_[np.zeros(150), np.ones(50) * trained]}
-        rows = [{"error_mm": x, "success_rate": sr * x / 20, "completion_time_s": [4.0, 1.0]} for x in report.LEVELS]
+        rows = [{"error_mm": x, "success_rate": sr * x / 20, "completion_time_s": [4.0, 1.0]} for x in runs.LEVELS]
         return {"cfg": cfg, "m": m, "eval": {"rows": rows}, "dir": f"runs/{obs}-s{seed}"}
-    runs = [run("pt", 0, 5.0, 0.0, 0.0), run("pt", 1, 7.0, 1.0, 0.2),
+    made = [run("pt", 0, 5.0, 0.0, 0.0), run("pt", 1, 7.0, 1.0, 0.2),
             run("ts-ptv", 0, 20.0, 1.0, 1.0), run("ts-ptv", 1, 20.0, 1.0, 0.9), run("ts-ptv", 2, 20.0, 1.0, 0.7)]
-    table = report.ablation_table(runs, "gear", "obs")
-    assert len(table) == 2 + 2 and report.ablation_table(runs[:2], "gear", "obs") == []
-    pt, ptv = table[2].split(" | "), table[3].split(" | ")
-    assert pt[0] == "| P-T" and pt[1:4] == ["2", "never / never", "6.0 / 6.0"]
-    assert pt[4] == "0.50 [0.00, 1.00] (0.00 / 1.00)" and pt[5] == "0.10 [0.00, 0.20] (0.00 / 0.20)"   # all resamples
-    assert ptv[0] == "| Time-series P-T-V" and ptv[1:4] == ["3", "81 / 81 / 81", "20.0 / 20.0"]
-    mean, lo, hi = (float(x) for x in re.match(r"([\d.]+) \[([\d.]+), ([\d.]+)\] \(1.00 / 0.90 / 0.70\)$",
-                                               ptv[5]).groups())
-    assert mean == 0.87 and 0.70 <= lo < mean < hi <= 1.00 and ptv[6] == "4.00"     # within the seeds
-    assert ptv[7] == "0.22 / 0.43 / 0.65 / 0.87 |"
-    assert report.ablation_table(runs, "peg", "obs") == [] and report.ablation_table(runs, "gear", "roi") == []
-    one = report.ablation_table(runs[1:4], "gear", "obs")[2].split(" | ")     # a setting of one seed: no spread
-    assert one[0] == "| P-T" and one[1] == "1" and one[4:6] == ["1.00", "0.20"]
+    table = results.ablation_table(made, "gear", "obs")
+    assert len(table) == 2 + 2 and results.ablation_table(made[:2], "gear", "obs") == []
+    pt, ptv = ([c.strip() for c in row.strip("|").split("|")] for row in table[2:])
+    number = lambda cell: [float(x) for x in re.findall(r"[\d.]+", cell)]      # noqa: E731  (mean, lo, hi)
+    assert pt[0] == "P-T" and pt[1:3] == ["2", "never / never"] and number(pt[3]) == [6.0, 5.0, 7.0]  # E_r at the end
+    assert number(pt[5]) == [0.5, 0.0, 1.0] and number(pt[6]) == [0.1, 0.0, 0.2]       # every resample of 2 seeds
+    assert ptv[0] == "Time-series P-T-V" and ptv[1:3] == ["3", "81 / 81 / 81"] and number(ptv[4]) == [20.0]
+    mean, lo, hi = number(ptv[6])
+    assert mean == pytest.approx(0.87, abs=0.005) and 0.70 <= lo < mean < hi <= 1.00 and ptv[7] == "4.00"
+    assert number(ptv[8]) == pytest.approx([0.22, 0.43, 0.65, 0.87], abs=0.005)
+    assert results.ablation_table(made, "peg", "obs") == [] and results.ablation_table(made, "gear", "roi") == []
+    one = [c.strip() for c in results.ablation_table(made[1:4], "gear", "obs")[2].strip("|").split("|")]
+    assert one[0] == "P-T" and one[1] == "1" and one[5:7] == ["1.00", "0.20"]   # a setting of one seed: no spread
 
 
 def test_a_planned_run_is_counted_for_its_own_experiment_alone():
@@ -109,10 +111,10 @@ def test_a_planned_run_is_counted_for_its_own_experiment_alone():
     run = {"dir": "results/gear-roi/gear-ts-ptv-adaptive-s0", "m": {"episode": list(range(1, 201))},
            "cfg": {**dataclasses.asdict(tacrl.Config()), "task": "gear", "train_episodes": 200, "stop_held": 0}}
     plan = lambda exp: [sweep.config_of([*row, "--seed", "0"]) for row in sweep.EXPERIMENTS[exp]]    # noqa: E731
-    assert sum(report.is_planned(run, p) for p in plan("gear-roi")) == 1
-    assert sum(report.is_planned(run, p) for p in plan("gear-curriculum")) == 0
+    assert sum(runs.is_planned(run, p) for p in plan("gear-roi")) == 1
+    assert sum(runs.is_planned(run, p) for p in plan("gear-curriculum")) == 0
     unfinished = {**run, "m": {"episode": list(range(1, 150))}}
-    assert sum(report.is_planned(unfinished, p) for p in plan("gear-roi")) == 0
+    assert sum(runs.is_planned(unfinished, p) for p in plan("gear-roi")) == 0
 
 
 def test_the_objects_study_shows_the_policy_the_scene_without_its_objects_and_changes_nothing_else():
@@ -135,69 +137,73 @@ def test_the_objects_study_shows_the_policy_the_scene_without_its_objects_and_ch
     assert (images["plain"] != images["none"]).mean() > 0.01            # and the block is in view
 
 
-def test_a_readme_table_is_made_anew_under_its_caption_or_refused(tmp_path):
-    readme = tmp_path / "README.md"
-    readme.write_text("# x\n\nTable 1 in today's world: ...\n\n| a |\n|---|\n| 1 |\n\nrest\n")
-    report.write_readme_table(str(readme), report.README_TABLE1, ["| b |", "|---|", "| 2 |"], log=lambda *_: None)
-    assert readme.read_text() == "# x\n\nTable 1 in today's world: ...\n\n| b |\n|---|\n| 2 |\n\nrest\n"
-    with pytest.raises(report.ArgError):                  # no such caption: one line, nothing written
-        report.write_readme_table(str(readme), "Table 9", ["| c |"], log=lambda *_: None)
-
-
-def test_the_readme_contexts_table_gives_each_background_its_mean_and_worst_seed(tmp_path):
-    import contexts
-    row = lambda sr: [{"success_rate": s, "cumulative_reward": [10.0 * s]} for s in sr]      # noqa: E731  (5..20 mm)
-    table = {("peg", "task attention", c): [row([1, 1, 1, 1]), row([1, 1, 0.9, 0.8])] for c in contexts.CONTEXTS}
-    table[("peg", "task attention", "bg-light")] = [row([1, 1, 0.5, 0.4]), row([1, 1, 0.3, 0.2])]
-    readme = tmp_path / "README.md"
-    readme.write_text(f"{report.README_CONTEXTS}:\n\n| old |\n")
-    report.write_readme_contexts(table, report.LEVELS, str(readme), log=lambda *_: None)
-    cells = readme.read_text().splitlines()[4].split(" | ")
-    assert cells[0] == "| peg, task attention" and cells[1] == "2" and cells[2] == "0.90 (0.80)"
-    assert cells[3] == "0.95-0.95 / 0.90-0.90" and cells[6] == "0.30 (0.20)"      # training, the places, bg-light
-
-
-def test_the_readme_families_table_shows_the_default_and_the_robust_option_alone(tmp_path):
+def test_the_readme_families_table_shows_the_default_and_the_robust_option_alone():
     import sim
-    option = report.OPTION_VIEW
-    old = report.view_of({**dataclasses.asdict(tacrl.Config()), "randomize": "light", "image_norm": "image"})
-    by = lambda sr: {"train": sr, **{f: sr for f in sim.FAMILIES}}                     # noqa: E731
-    families = {("peg", "task attention"): by([1.0, 0.9]), ("peg", option): by([0.95]), ("peg", old): by([0.5])}
-    readme = tmp_path / "README.md"
-    readme.write_text(f"{report.README_FAMILIES}:\n\n| old |\n")
-    report.write_readme_families(families, str(readme), log=lambda *_: None)
-    rows = readme.read_text().splitlines()[4:]
-    assert [r.split(" | ")[:3] for r in rows] == [["| peg, task attention", "2", "0.95 (0.90)"],
-                                                   [f"| peg, {option}", "1", "0.95 (0.95)"]]
-    assert "tilt_deg 1.0" in option and "mixed" in option
+    old = runs.view_of({**dataclasses.asdict(tacrl.Config()), "randomize": "light", "image_norm": "image"})
+    by = lambda sr: {"seeds": len(sr), "train": sr, **{f: sr for f in sim.FAMILIES}}    # noqa: E731
+    families = {("peg", "task attention"): by([1.0, 0.9]), ("peg", runs.OPTION_VIEW): by([0.95]), ("peg", old): by([0.5])}
+    rows = [[c.strip() for c in r.strip("|").split("|")] for r in scenes.readme_families(families)[2:]]
+    assert [r[:3] for r in rows] == [["peg, task attention", "2", "0.95 (0.90)"], ["peg, robust option", "1",
+                                                                                  "0.95 (0.95)"]]
+    assert "tilt_deg 1.0" in runs.OPTION_VIEW and "mixed" in runs.OPTION_VIEW
 
 
 def test_the_orders_sentence_says_it_holds_only_where_each_interval_lies_above_the_next():
-    paper = lambda **srs: {k + report.PAPER_CRITICS: np.array(v) for k, v in srs.items()}   # noqa: E731
-    apart = paper(ours=[0.9, 0.95, 1.0], keypoint=[0.6, 0.65, 0.7], visual=[0.0, 0.05, 0.1], vanilla=[0.0, 0.0, 0.1])
-    assert report.ordering_sentence(apart).endswith("under its own critics: it holds.")
-    overlap = dict(apart, **paper(keypoint=[0.6, 0.65, 0.95]))
-    said = report.ordering_sentence(overlap)
+    mm = lambda **srs: {k + runs.MULTIMODAL: np.array(v) for k, v in srs.items()}   # noqa: E731
+    apart = mm(ours=[0.9, 0.95, 1.0], keypoint=[0.6, 0.65, 0.7], visual=[0.0, 0.05, 0.1], vanilla=[0.0, 0.0, 0.1])
+    assert results.ordering_sentence(apart).endswith(": it holds.")
+    said = results.ordering_sentence(dict(apart, **mm(keypoint=[0.6, 0.65, 0.95])))
     assert "not shown" in said and "ours is above keypoint RL on the mean only" in said
-    assert report.ORDERING.fullmatch(said)                    # the README's pattern takes the whole of it
-    below = {k: v for k, v in paper(ours=[0.3, 0.4], keypoint=[0.5, 0.6]).items()}
-    said = report.ordering_sentence(below)
+    said = results.ordering_sentence(mm(ours=[0.3, 0.4], keypoint=[0.5, 0.6]))
     assert "ours is not above keypoint RL" in said and "visual RL and vanilla RL are not run yet" in said
+    assert [results.above(a, b) for a, b in (([0.9, 1.0], [0.1, 0.2]), ([0.5, 0.9], [0.4, 0.6]), ([0.1], [0.2]))] == \
+        ["above", "on the mean only", "not above"]
+
+
+def test_the_report_calls_no_setting_the_papers_unless_it_is():
+    """Table 1 in full and in the README, its order sentence and the README's findings, made of runs of every learned
+    method with privileged and with multimodal critics: a method or critics cell, and a sentence before the paper's
+    own numbers, never calls a setting of ours the paper's; the paper is named only for its own numbers."""
+    def run(changes, sr):
+        cfg = {**dataclasses.asdict(tacrl.Config()), "train_episodes": 200, "stop_held": 0, **changes}
+        row = {"error_mm": 20.0, "success_rate": sr, "completion_time_s": [5.0, 1.0], "cumulative_reward": [50.0, 1.0],
+               **{f"contact_force_{a}_N": [1.0, 0.1] for a in "xyz"}}
+        return {"cfg": cfg, "m": {"episode": list(range(1, 201))}, "eval": {"rows": [row]}, "dir": "runs/x"}
+    made = [run({**method, "critic": critic, "seed": s}, 0.5 + 0.1 * s) for s in range(3)
+            for critic in ("privileged", "multimodal")
+            for method in ({}, {"vanilla": True}, {"obs": "v"}, {"obs": "ts-ptk"})]
+    ts = {**made[0]["eval"]["rows"][0], "episodes": 20}
+    full, readme, srs = results.table1(made, ts)
+    for table, paper_column in ((full, 7), (readme, 4)):
+        rows = [[c.strip() for c in r.strip("|").split("|")] for r in table if r.startswith("| ") and "---" not in r]
+        header, rows = rows[0], rows[1:]
+        assert header[paper_column].startswith("paper") and not any("paper" in h for h in header[:paper_column])
+        assert len(rows) == 9 and sum("multimodal" in r[1] for r in rows) == 4
+        for r in rows:
+            assert not any("paper" in c for c in r[:paper_column]), r            # no setting is called the paper's
+    sentence = results.ordering_sentence(srs)
+    assert "paper" not in sentence.split("The paper's order")[0]
+    for line in results.findings(made, srs, ts, {}):
+        for part in line.split(";"):                       # each clause: ours named as ours, the paper for its numbers
+            assert "paper's critics" not in part and (
+                "paper" not in part or re.search(r"the paper's [\d.-]|the paper's every|the paper's about", part)), part
+    labels = [*results.TABLE1_ROWS.values(), *results.CRITICS.values(), *runs.VIEWS.values(), *runs.OBS_NAMES.values()]
+    assert not [x for x in labels if "paper" in x]
 
 
 def test_the_leave_one_out_has_a_table_of_its_own_named_by_the_part_left_out():
     import sim
-    by = lambda sr: {"train": sr, **{f: sr for f in sim.FAMILIES}}                     # noqa: E731
-    view = {out: v for v, out in report.LOO_VIEWS.items()}
+    by = lambda sr: {"seeds": len(sr), "train": sr, **{f: sr for f in sim.FAMILIES}}    # noqa: E731
+    view = {out: v for v, out in runs.LOO_VIEWS.items()}
     no_tilt, no_light = view["--tilt-deg"], view["light"]
-    families = {("peg", "task attention"): by([1.0]), ("peg", report.OPTION_VIEW): by([0.95, 1.0]),
+    families = {("peg", "task attention"): by([1.0]), ("peg", runs.OPTION_VIEW): by([0.95, 1.0]),
                 ("peg", no_tilt): by([0.5]), ("peg", no_light): by([0.25])}
-    md = report.family_table(families, episodes=20)
+    md = scenes.family_table(families, episodes=20)
     split = next(i for i, line in enumerate(md) if line.startswith("What each part"))
     main = [r.split(" | ")[1] for r in md[:split] if r.startswith("| peg")]
-    assert main == ["task attention", report.OPTION_VIEW]
+    assert main == ["task attention", runs.OPTION_VIEW]
     loo = [r.split(" | ")[1:4] for r in md[split:] if r.startswith("| peg")]
     assert loo == [["nothing (the option)", "2", "0.97 (0.95-1.00)"], ["`light`", "1", "0.25"],
                    ["`--tilt-deg`", "1", "0.50"]]                                   # the option first, then as planned
-    alone = report.family_table({("peg", no_light): by([0.25])}, episodes=20)          # a run of it, reported alone
+    alone = scenes.family_table({("peg", no_light): by([0.25])}, episodes=20)          # a run of it, reported alone
     assert [r.split(" | ")[1] for r in alone if r.startswith("| peg")] == ["`light`"]

@@ -15,8 +15,12 @@ import torch
 import cli
 import evaluate
 import policy
+import pages
 import report
+import results
 import rundir
+import runs
+import scenes
 import contexts
 import scene
 import sim
@@ -262,68 +266,89 @@ def test_archive_keeps_what_the_report_reads_and_skips_unfinished_runs(tiny_run,
     for f in ("config.json", "metrics.csv"):
         shutil.copy(os.path.join(tiny_run["dir"], f), unfinished / f)
     lines = []
-    results = tmp_path / "results"
-    assert report.archive_runs(f"{tiny_run['dir']},{unfinished}", dest=str(results), log=lines.append) == \
-        [str(results / "run")]
-    assert sorted(os.listdir(results / "run")) == ["config.json", "curves.png", "eval.json", "metrics.csv", "policy.pt"]
+    archive = tmp_path / "results"
+    assert runs.archive_runs(f"{tiny_run['dir']},{unfinished}", dest=str(archive), log=lines.append) == \
+        [str(archive / "run")]
+    assert sorted(os.listdir(archive / "run")) == ["config.json", "curves.png", "eval.json", "metrics.csv", "policy.pt"]
     assert any(str(unfinished) in x and "not finished" in x for x in lines)
     assert cli.command("report", lambda: report.main([str(unfinished), "--archive"])) == 2
 
 
-def test_report_is_written_from_an_archive(tiny_run, tmp_path):
-    results = tmp_path / "results"
-    report.archive_runs(tiny_run["dir"], dest=str(results), log=lambda *_: None)
+def cells(block, first):
+    """The cells of a block's table row whose first cell is `first`."""
+    row = next(ln for ln in block.splitlines() if ln.startswith(f"| {first} |"))
+    return [c.strip() for c in row.strip("|").split("|")]
+
+
+def test_report_fills_the_pages_blocks_from_an_archive(tiny_run, tmp_path, monkeypatch):
+    monkeypatch.setattr(results, "QUICKSTART_RUNS", str(tmp_path / "none" / "*"))    # no reference runs, no SB3 runs:
+    monkeypatch.setattr(results, "SB3_RUNS", str(tmp_path / "none" / "*.json"))      # their blocks are left as they are
+    archive = tmp_path / "results"
+    runs.archive_runs(tiny_run["dir"], dest=str(archive), log=lambda *_: None)
     docs = tmp_path / "docs"
     docs.mkdir()
     row = {"success_rate": 0.5, "completion_time_s": [10.0, 1.0], "contact_force_x_N": [1.0, 0.0],
            "contact_force_y_N": [1.0, 0.0], "contact_force_z_N": [1.0, 0.0], "cumulative_reward": [1.0, 0.0],
            "episodes": 20}      # the two-step row's cache: evaluating the baseline takes a minute
-    report.write_world_cache(str(docs / "two-step-peg-20mm.json"), sim.WORLD, row)
-    (docs / "fig-peg-obs.png").write_bytes(b"an earlier report's figure, of runs this one has not got")
-    (docs / "results-notes.md").write_text("How they were made.\n\n## Other\n\nMore.\n\n## Table 1\n\nWhy it "
-                                           "differs.\n")
-    assert cli.command("report", lambda: report.main([str(results / "*"), "--out", str(docs)])) == 0
-    text = (docs / "RESULTS.md").read_text()
-    order = ("## Table 1", "Why it differs.", "## Table 2", "How they were made.", "## Other\n\nMore.")
-    assert [text.index(k) for k in order] == sorted(text.index(k) for k in order)
-    assert str(results / "run") in text and "Table 1" in text and "Table 2" in text
-    assert "| two-step (visual servo, spiral search) | - | 0.50 | 10.00 +- 1.00 |" in text
-    assert "| ours (TA-MRP + adaptive curriculum) | | not run in this world |" in text    # not 200 episodes: not a row
-    assert "(at 1 mm)" in text               # its levels are named: not the usual 5/10/15/20
-    assert (docs / "fig-peg-runs.png").stat().st_size > 0 and not (docs / "fig-peg-obs.png").exists()
-    assert f"all made in world {sim.WORLD}" in text
-    other = results / "other-world"                      # a run of another world: refused, nothing written
-    shutil.copytree(results / "run", other)
+    runs.write_world_cache(str(docs / "two-step-peg-20mm.json"), sim.WORLD, row)
+    page = "# A page\n\nProse.\n\n" + "".join(f"<!-- report: {b} -->\ntyped\n<!-- end -->\n\n" for b in results.BLOCKS)
+    (docs / "all.md").write_text(page + "The end.\n")
+    readme = tmp_path / "README.md"
+    readme.write_text("# x\n\n<!-- report: readme-table1 -->\n<!-- end -->\n\n<!-- report: code-map -->\n<!-- end -->\n")
+    argv = [str(archive / "*"), "--out", str(docs), "--readme", str(readme)]
+    assert cli.command("report", lambda: report.main(argv)) == 0
+    blocks = pages.blocks((docs / "all.md").read_text())
+    assert (docs / "all.md").read_text().startswith("# A page\n\nProse.\n") and "The end." in (docs / "all.md").read_text()
+    assert blocks["quickstart"] == blocks["sb3"] == "typed\n"                  # nothing made of them: as they were
+    two_step = cells(blocks["table1"], "two-step (visual servo, spiral search)")
+    assert two_step[3:5] == ["0.50", "10.00 +- 1.00"]                           # SR and CT, the cache's
+    assert "not run in this world" in cells(blocks["table1"], "ours (TA-MRP + adaptive curriculum)")   # not 200 eps
+    in_readme = pages.blocks(readme.read_text())
+    assert in_readme["readme-table1"] == blocks["readme-table1"] != "typed\n"   # one table in two pages
+    lines = sum(1 for _ in open(os.path.join(os.path.dirname(tacrl.__file__), "tacrl.py")))
+    assert cells(in_readme["code-map"], "`tacrl.py`")[1] == str(lines)         # the code map's sizes, counted
+    other = archive / "other-world"                      # a run of another world: refused, nothing written
+    shutil.copytree(archive / "run", other)
     (other / "eval.json").write_text(json.dumps({**json.loads((other / "eval.json").read_text()), "world": None}))
-    (docs / "RESULTS.md").unlink()
-    assert cli.command("report", lambda: report.main([str(results / "*"), "--out", str(docs)])) == 2
-    assert not (docs / "RESULTS.md").exists()
+    before = (docs / "all.md").read_text()
+    assert cli.command("report", lambda: report.main(argv)) == 2
+    assert (docs / "all.md").read_text() == before
+
+
+def test_a_pages_blocks_are_made_anew_and_the_rest_kept_and_a_stale_one_named(tmp_path):
+    page = tmp_path / "p.md"
+    page.write_text("# x\n\n<!-- report: a -->\nold\n<!-- end -->\n\nkept\n\n<!-- report: b -->\n<!-- end -->\n")
+    assert pages.fill(str(page), {"a": "| 1 |", "c": "not here"}, log=lambda *_: None) == ["a"]
+    assert page.read_text() == "# x\n\n<!-- report: a -->\n| 1 |\n<!-- end -->\n\nkept\n\n<!-- report: b -->\n<!-- end -->\n"
+    assert pages.stale(str(page), {"a": "| 1 |"}) == [] and pages.stale(str(page), {"a": "| 2 |", "b": "x"}) == ["a", "b"]
+    long = "word " * 60                                          # prose wraps at 120, a table's row does not
+    assert all(len(x) <= 120 for x in pages.wrap(long).split("\n")) and pages.wrap("|" + long) == "|" + long
 
 
 def test_table2_rows_are_evaluated_once_per_world_and_context(tiny_run, tmp_path, monkeypatch):
     monkeypatch.setattr(sim, "MAX_STEPS", SHORT)
     d = tmp_path / "run"
     shutil.copytree(tiny_run["dir"], d)
-    run, said = report.load_run(str(d)), []
-    train = report.eval_cached(run, "train", levels=(1.0,), episodes=1, log=said.append)
+    run, said = runs.load_run(str(d)), []
+    train = runs.eval_cached(run, "train", levels=(1.0,), episodes=1, log=said.append)
     assert not said and train == run["eval"]["rows"]            # the training context's rows: eval.json's
-    loc = report.eval_cached(run, "loc-2", levels=(1.0,), episodes=1, log=said.append)
-    assert len(said) == 1 and report.eval_cached(run, "loc-2", levels=(1.0,), episodes=1, log=said.append) == loc
+    loc = runs.eval_cached(run, "loc-2", levels=(1.0,), episodes=1, log=said.append)
+    assert len(said) == 1 and runs.eval_cached(run, "loc-2", levels=(1.0,), episodes=1, log=said.append) == loc
     cache = d / "eval-ctx-loc-2.json"                             # the cache report.py --contexts fills too
     assert json.loads(cache.read_text())["world"] == sim.WORLD and len(said) == 1
     cache.write_text(json.dumps({**json.loads(cache.read_text()), "world": sim.WORLD - 1}))  # another world's rows
-    report.eval_cached(run, "loc-2", levels=(1.0,), episodes=1, log=said.append)
+    runs.eval_cached(run, "loc-2", levels=(1.0,), episodes=1, log=said.append)
     assert len(said) == 2 and json.loads(cache.read_text())["world"] == sim.WORLD       # evaluated again
     old = {**run, "eval": {**run["eval"], "world": None}}          # a run of an older world: never evaluated here
-    with pytest.raises(report.ArgError, match="made in world unversioned"):
-        report.eval_cached(old, "loc-2", levels=(1.0,), episodes=1, log=said.append)
+    with pytest.raises(runs.ArgError, match="made in world unversioned"):
+        runs.eval_cached(old, "loc-2", levels=(1.0,), episodes=1, log=said.append)
 
 
 def test_compare_lists_finished_and_unfinished_runs_and_refuses_two_worlds(tiny_run, tmp_path):
     unfinished = tmp_path / "runs" / "unfinished"
     unfinished.mkdir(parents=True)
     shutil.copy(os.path.join(tiny_run["dir"], "metrics.csv"), unfinished / "metrics.csv")
-    cfg = report.read_json(os.path.join(tiny_run["dir"], "config.json"))
+    cfg = runs.read_json(os.path.join(tiny_run["dir"], "config.json"))
     other_task = {"peg": "gear", "gear": "peg"}[cfg["task"]]             # the same settings on the other task
     (unfinished / "config.json").write_text(json.dumps({**cfg, "task": other_task}))
     docs = tmp_path / "docs"
@@ -343,12 +368,12 @@ def test_compare_lists_finished_and_unfinished_runs_and_refuses_two_worlds(tiny_
 
 def test_behaviour_and_view_figures(tiny_run, tmp_path, monkeypatch):
     monkeypatch.setattr(sim, "MAX_STEPS", SHORT)
-    rec, term = report.record_episode(report.load_run(tiny_run["dir"]), error_mm=0.0)
+    rec, term = results.record_episode(runs.load_run(tiny_run["dir"]), error_mm=0.0)
     assert len(rec["action"]) == len(rec["phase"]) > 0 and list(rec["phase"]) == sorted(rec["phase"])
     assert np.shape(rec["saliency"]) == np.shape(rec["image"]) == (len(rec["action"]), 80, 80)
     assert np.max(rec["saliency"]) > 0            # the lateral action depends on the image
-    report.figures.plot_behaviour(rec, str(tmp_path / "behaviour.png"), "tiny")
-    report.figures.plot_views("peg", ("full",), ("train", "bg-objects"), str(tmp_path / "views.png"))
+    results.figures.plot_behaviour(rec, str(tmp_path / "behaviour.png"), "tiny")
+    results.figures.plot_views("peg", ("full",), ("train", "bg-objects"), str(tmp_path / "views.png"))
     assert (tmp_path / "behaviour.png").stat().st_size > 0 and (tmp_path / "views.png").stat().st_size > 0
 
 
@@ -364,11 +389,11 @@ def test_a_finished_run_is_not_resumed_but_can_be_extended(tiny_run, tmp_path, c
     shutil.copytree(tiny_run["dir"], run_dir)
     for cached in ("eval-ctx-loc-2.json", "eval-bg-light-1mm.json"):     # evaluations of the old policy
         shutil.copy(os.path.join(run_dir, "eval.json"), os.path.join(run_dir, cached))
-    results = tmp_path / "results"
-    report.archive_runs(run_dir, dest=str(results), log=lambda *_: None)
-    archived_cfg = json.loads((results / "run" / "config.json").read_text())
+    archive = tmp_path / "results"
+    runs.archive_runs(run_dir, dest=str(archive), log=lambda *_: None)
+    archived_cfg = json.loads((archive / "run" / "config.json").read_text())
     del archived_cfg["augment"]                          # as written before that flag existed: its default
-    (results / "run" / "config.json").write_text(json.dumps(archived_cfg))
+    (archive / "run" / "config.json").write_text(json.dumps(archived_cfg))
     assert tacrl.main(["--resume", run_dir, "--train-episodes", "9"]) == 0
     assert "the finished run's files are now *-ep8.*" in capsys.readouterr().out
     assert [int(r["episode"]) for r in metrics(run_dir)] == list(range(1, 10))
@@ -376,13 +401,13 @@ def test_a_finished_run_is_not_resumed_but_can_be_extended(tiny_run, tmp_path, c
         "curves-ep8.png", "curves.png", "eval-bg-light-1mm-ep8.json", "eval-ctx-loc-2-ep8.json", "eval-ep8.json",
         "eval.json", "policy-ep8.pt", "policy.pt"]
     # archived again, the extended run replaces its earlier state: no cached evaluation of the old policy is left
-    report.archive_runs(run_dir, dest=str(results), log=lambda *_: None)
-    assert sorted(os.listdir(results / "run")) == ["config.json", "curves.png", "eval-bg-light-1mm-ep8.json",
+    runs.archive_runs(run_dir, dest=str(archive), log=lambda *_: None)
+    assert sorted(os.listdir(archive / "run")) == ["config.json", "curves.png", "eval-bg-light-1mm-ep8.json",
                                                    "eval-ctx-loc-2-ep8.json", "eval-ep8.json", "eval.json",
                                                    "metrics.csv", "policy.pt"]
-    assert report.same_run(run_dir, str(results / "run")) == "same" and len(metrics(results / "run")) == 9
-    assert report.training_of(report.load_run(run_dir)) == "seed 0: 9 episodes (first finished at 8, then trained on)"
-    assert report.training_of(report.load_run(tiny_run["dir"])) == "seed 0: 8 episodes"
+    assert runs.same_run(run_dir, str(archive / "run")) == "same" and len(metrics(archive / "run")) == 9
+    assert scenes.training_of(runs.load_run(run_dir)) == "seed 0: 9 episodes (first finished at 8, then trained on)"
+    assert scenes.training_of(runs.load_run(tiny_run["dir"])) == "seed 0: 8 episodes"
     assert json.load(open(os.path.join(run_dir, "config.json")))["train_episodes"] == 9
 
 
@@ -433,38 +458,32 @@ def test_every_context_is_evaluated_once_and_the_table_names_each(tiny_run, tmp_
     monkeypatch.setattr(contexts, "CONTEXTS", two)        # (where the env and the report read them)
     monkeypatch.setattr(sim, "FAMILIES", ("parts",))
     out = tmp_path / "docs"
-    assert report.write_contexts(tiny_run["dir"], str(out), levels=(1.0,), episodes=1, log=lambda *_: None) == 0
-    text = (out / "CONTEXTS.md").read_text()
+    made = scenes.make(tiny_run["dir"], str(out), levels=(1.0,), episodes=1, log=lambda *_: None)
     view = "task attention (updates 2, warmup 1, batch 8, buffer 40)"
-    assert f"| peg | {view} | loc-2 | 1 |" in text and "| train |" in text
-    # 20 mm: not trained at
-    assert "| task | view | seeds | train | parts |" in text and f"| peg | {view} | 1 | - |" in text
+    assert cells(made["contexts"], f"peg | {view} | loc-2")[3] == "1"       # a seed
+    assert cells(made["contexts"], f"peg | {view} | train")[4] == f"{tiny_run['eval']['rows'][0]['success_rate']:.2f}"
+    assert cells(made["families"], f"peg | {view}")[3] == "-"                # 20 mm: not trained at, not evaluated
     family = json.loads(open(os.path.join(tiny_run["dir"], "eval-ctx-parts-test.json")).read())
     assert family["context"] == contexts.context_key("parts:test", "peg") and family["levels"] == [20.0]
     asked = []
-    real_rows = report.context_rows
-    monkeypatch.setattr(report, "context_rows", lambda job: asked.append(job[1]) or real_rows(job))
-    readme = tmp_path / "README.md"                    # its families table is made anew, the rest kept as it was
-    readme.write_text(f"# x\n\n{report.README_FAMILIES}:\n\n| old | table |\n|---|---|\n| typed | 0.97 |\n\nthe end\n")
-    assert report.write_families(tiny_run["dir"], str(out), episodes=1, log=lambda *_: None, readme=str(readme)) == 0
-    assert asked == ["parts:test"] and f"| peg | {view} | 1 | - |" in (out / "FAMILIES.md").read_text()
-    lines = readme.read_text().splitlines()
-    assert lines[:4] == ["# x", "", f"{report.README_FAMILIES}:", ""] and lines[-2:] == ["", "the end"]
-    assert "typed" not in readme.read_text() and lines[4].endswith("| train | parts |")
-    monkeypatch.setattr(report, "context_rows", real_rows)
+    real_rows = runs.context_rows
+    monkeypatch.setattr(runs, "context_rows", lambda job: asked.append(job[1]) or real_rows(job))
+    again = scenes.make(tiny_run["dir"], str(out), levels=(1.0,), episodes=1, log=lambda *_: None, named=False)
+    assert asked == ["parts:test"] and again["families"] == made["families"] and "contexts" not in again
+    monkeypatch.setattr(runs, "context_rows", real_rows)
     assert (out / "ctx-peg-bars.png").stat().st_size > 0 and (out / "ctx-peg-views.png").stat().st_size > 0
     cached = json.loads(open(os.path.join(tiny_run["dir"], "eval-ctx-loc-2.json")).read())
     assert cached["world"] == sim.WORLD and cached["context"] == repr(contexts.CONTEXTS["loc-2"])
     monkeypatch.setattr(evaluate, "evaluate_levels", lambda *a, **k: pytest.fail("evaluated again"))
-    report.write_contexts(tiny_run["dir"], str(out), levels=(1.0,), episodes=1, log=lambda *_: None)
+    scenes.make(tiny_run["dir"], str(out), levels=(1.0,), episodes=1, log=lambda *_: None)
     # a redefined context is evaluated again
     monkeypatch.setitem(contexts.CONTEXTS, "loc-2", scene.Context(board_xy=(0.6, -0.2), board_yaw=0.3))
     with pytest.raises(pytest.fail.Exception, match="evaluated again"):
-        report.write_contexts(tiny_run["dir"], str(out), levels=(1.0,), episodes=1, log=lambda *_: None)
+        scenes.make(tiny_run["dir"], str(out), levels=(1.0,), episodes=1, log=lambda *_: None)
 
 
 def test_a_run_trained_in_the_families_scenes_is_tested_on_their_held_out_seeds_alone(tiny_run, tmp_path, monkeypatch):
-    # the named backgrounds are of the kinds a --randomize run has met: CONTEXTS.md shows it in the families only
+    # the named backgrounds are of the kinds a --randomize run has met: it is in the families' table alone
     monkeypatch.setattr(sim, "MAX_STEPS", SHORT)
     monkeypatch.setattr(sim, "FAMILIES", ("light",))
     run = tmp_path / "rand"
@@ -472,12 +491,10 @@ def test_a_run_trained_in_the_families_scenes_is_tested_on_their_held_out_seeds_
     cfg = json.loads((run / "config.json").read_text())
     (run / "config.json").write_text(json.dumps({**cfg, "randomize": "light"}))
     asked = []
-    real_rows = report.context_rows
-    monkeypatch.setattr(report, "context_rows", lambda job: asked.append(job[1]) or real_rows(job))
-    report.write_contexts(str(run), str(tmp_path / "docs"), levels=(1.0,), episodes=1, log=lambda *_: None)
-    text = (tmp_path / "docs" / "CONTEXTS.md").read_text()
-    assert asked == ["light:test"] and "randomize light" in text and "| loc-" not in text
-    assert "appears in the families alone" in text
+    real_rows = runs.context_rows
+    monkeypatch.setattr(runs, "context_rows", lambda job: asked.append(job[1]) or real_rows(job))
+    made = scenes.make(str(run), str(tmp_path / "docs"), levels=(1.0,), episodes=1, log=lambda *_: None)
+    assert asked == ["light:test"] and "randomize light" in made["families"] and "| loc-" not in made["contexts"]
 
 
 def test_critics_diagnostics_of_a_run_and_its_compare_row(tiny_run, tmp_path, monkeypatch):

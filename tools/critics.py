@@ -33,7 +33,7 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__)))) 
 import cli  # noqa: E402
 import command  # noqa: E402
 import evaluate  # noqa: E402
-import report  # noqa: E402
+import runs  # noqa: E402
 import tacrl  # noqa: E402
 from cli import ArgError  # noqa: E402
 
@@ -69,7 +69,7 @@ def diagnose(run_dir, resets=200, episodes=20, log=print):
         cfg = tacrl.read_config(run_dir)
     except ValueError as e:                          # a run of the critics study: its tag's critics.py reads it
         raise ArgError(f"{run_dir}: {e}")
-    pi = report.load_policy(report.load_run(run_dir))
+    pi = runs.load_policy(runs.load_run(run_dir))
     torch.manual_seed(cfg.seed)                       # the run's networks as its training drew them, before it
     sac = tacrl.make_sac(cfg, device="cpu")
     enc0 = copy.deepcopy(sac.actor_enc)              # the probe's reference: the same encoder untrained
@@ -140,7 +140,7 @@ def main(argv=None):
     if a.resets < 4 or a.episodes < 1:
         raise ArgError(f"--resets must be at least 4 (the probe fits on half, scores on the other) and --episodes at "
                        f"least 1, not {a.resets} and {a.episodes}")
-    dirs = [d for d in report.match_runs(a.runs) if os.path.exists(os.path.join(d, "policy.pt"))]
+    dirs = [d for d in runs.match_runs(a.runs) if os.path.exists(os.path.join(d, "policy.pt"))]
     if not dirs:
         raise ArgError(f"{a.runs!r}: no run with a policy.pt")
     command.use_cpu()

@@ -4,7 +4,7 @@ which sees no image, is disturbed by them.
 
     python tools/objects.py "results/robust/peg-*-imgnorm-image-s*"                 # -> results/objects/family/
     python tools/objects.py "results/robust/peg-*-imgnorm-image-s*" --scenes issue  # the issue's blocks
-    python tools/objects.py --docs docs                  # docs/OBJECTS.md and its figures from results/objects
+    python tools/objects.py --docs docs                  # docs/objects.md and its figures from results/objects
 
 In held-out scenes at the largest error (20 mm), each run's policy meets the same episodes (evaluate's held-out
 seeds, the same scenes) four ways:
@@ -36,7 +36,9 @@ import cli  # noqa: E402
 import command  # noqa: E402
 import contexts  # noqa: E402
 import evaluate  # noqa: E402
-import report  # noqa: E402
+import pages  # noqa: E402
+import results  # noqa: E402
+import runs  # noqa: E402
 import scene  # noqa: E402
 import sim  # noqa: E402
 from cli import ArgError  # noqa: E402
@@ -147,7 +149,7 @@ def episode_env(run, pi, scenes):
 
 def study_run(run, episodes, scenes="family", log=print):
     """The conditions' episodes of one run: {condition: [per episode {success, touched, ...}]}."""
-    pi = report.load_policy(run)
+    pi = runs.load_policy(run)
     seed = evaluate.EVAL_SEED + run["cfg"]["seed"]
     out = {c: [] for c in CONDITIONS}
     for cond in CONDITIONS:
@@ -182,13 +184,13 @@ def study_run(run, episodes, scenes="family", log=print):
 
 def first_images(run, scenes, k=SHOWN):
     """The first image of episodes 0..k-1 of a run's study, the same without the objects, and the saliency."""
-    pi, seed, shown = report.load_policy(run), evaluate.EVAL_SEED + run["cfg"]["seed"], []
+    pi, seed, shown = runs.load_policy(run), evaluate.EVAL_SEED + run["cfg"]["seed"], []
     with episode_env(run, pi, scenes) as env:
         last = {}
         mirror = twin_renders(env, False, last)
         for ep in range(k):
             obs, _ = env.reset(seed=evaluate.episode_seed(seed, ep))
-            shown.append({"seen": last["seen"], "blind": last["blind"], "saliency": report.saliency(pi, obs)})
+            shown.append({"seen": last["seen"], "blind": last["blind"], "saliency": results.saliency(pi, obs)})
         mirror.close()
     return shown
 
@@ -212,13 +214,13 @@ SCENES = {"issue": "scenes of the kind issue 53 found the peg failing in: 2-4 bl
 
 
 def write_docs(out, docs, log=print):
-    """docs/OBJECTS.md's tables, one for each kind of scenes and task, from the JSONs under `out`, and a figure each."""
-    results = [report.read_json(os.path.join(out, sc, f)) for sc in SCENES if os.path.isdir(os.path.join(out, sc))
+    """docs/objects.md's block `objects` (pages.py): a table for each kind of scenes and task, from the JSONs under
+    `out`, and a figure each."""
+    studies = [runs.read_json(os.path.join(out, sc, f)) for sc in SCENES if os.path.isdir(os.path.join(out, sc))
                for f in sorted(os.listdir(os.path.join(out, sc))) if f.endswith(".json")]
-    if not results:
+    if not studies:
         raise ArgError(f"{out}: no study here (run tools/objects.py RUNS first)")
-    md = ["# Why the peg fails among workbench objects (issue 53)", "",
-          f"Made by `python tools/objects.py --docs docs` from `{out}` (world {sim.WORLD}). Each run meets the same "
+    md = [f"Made by `python tools/objects.py --docs docs` from `{out}` (world {sim.WORLD}). Each run meets the same "
           f"held-out scenes at {ERROR_MM:g} mm (evaluation's seeds) four ways: seeing the objects (seen); blind to "
           "them (the physics holds them, each image the policy gets is rendered without them, with the same sensor "
           "noise); the hand-designed part alone, which sees no image (hand); and the same with the objects moved 5 m "
@@ -227,13 +229,13 @@ def write_docs(out, docs, log=print):
           "bit. "
           "Each cell: the mean over the runs (seeds) with a 95 % bootstrap interval over them, then each run's."]
     setting = lambda r: re.sub(r"-s\d+$", "", os.path.basename(os.path.normpath(r["dir"])))  # noqa: E731
-    groups = sorted({(r["scenes"], r["task"], setting(r)) for r in results},
+    groups = sorted({(r["scenes"], r["task"], setting(r)) for r in studies},
                     key=lambda k: (list(SCENES).index(k[0]), k[1], "imgnorm" not in k[2], k[2]))
     for sc, task, name in groups:
-        mine = [r for r in results if (r["scenes"], r["task"], setting(r)) == (sc, task, name)]
+        mine = [r for r in studies if (r["scenes"], r["task"], setting(r)) == (sc, task, name)]
         rows = [r["summary"] for r in mine]
-        md += ["", f"## {task}, `{name}`, {SCENES[sc]}", "",
-               f"{len(mine)} runs, {rows[0]['episodes']} episodes each a condition: "
+        md += ["", f"### {task}, `{name}`", "",
+               f"In {SCENES[sc]}: {len(mine)} runs, {rows[0]['episodes']} episodes each a condition: "
                + ", ".join(f"`{os.path.basename(os.path.normpath(r['dir']))}`" for r in mine) + ".", "",
                "| measure | mean over runs (95 % interval) | per run |", "|---|---|---|"]
         total = lambda key: sum(r[key] for r in rows)  # noqa: E731
@@ -243,7 +245,7 @@ def write_docs(out, docs, log=print):
                      f"episodes seeing them, {total('touched_blind')} blind and "
                      f"{total('touched_hand')} with the hand-designed part alone.", ""]
         line = lambda name, key, f="{:.2f}": md.append(  # noqa: E731
-            f"| {name} | {report.ci([r[key] for r in rows])} | {' / '.join(f.format(r[key]) for r in rows)} |")
+            f"| {name} | {runs.ci([r[key] for r in rows])} | {' / '.join(f.format(r[key]) for r in rows)} |")
         line("SR, the policy seeing the objects", "sr_seen")
         line("SR, the same episodes, the objects out of the policy's images (blind)", "sr_blind")
         line("SR, the hand-designed part alone (zero residual; it sees no image)", "sr_hand")
@@ -260,10 +262,10 @@ def write_docs(out, docs, log=print):
                f"*{task}, `{os.path.basename(os.path.normpath(mine[0]['dir']))}`: the first image of its first {SHOWN} "
                "episodes (the task ROI at the start, 80 x 80), the same without the objects, and the saliency of the "
                f"lateral force actions there (|dF_x/dI| + |dF_y/dI|, blurred over {SMOOTH:g} px).*"]
-        plot_shown(first_images(report.load_run(mine[0]["dir"]), sc), os.path.join(docs, fig))
-    with open(os.path.join(docs, "OBJECTS.md"), "w") as f:
-        f.write("\n".join(md) + "\n")
-    log(f"wrote {docs}/OBJECTS.md and its figures")
+        plot_shown(first_images(runs.load_run(mine[0]["dir"]), sc), os.path.join(docs, fig))
+    page = os.path.join(docs, "objects.md")
+    if not os.path.exists(page) or not pages.fill(page, {"objects": "\n".join(md)}, log):
+        raise ArgError(f"{page}: no block `objects` (<!-- report: objects --> ... <!-- end -->) to fill")
 
 
 def plot_shown(shown, path):
@@ -291,25 +293,25 @@ def main(argv=None):
                     "scenes (default), or the issue's kind: 2-4 blocks 2-3 cm, 1-2 cm tall, 3-6 cm from the hole")
     ap.add_argument("--out", default="results/objects", help="the studies' folder: <out>/<scenes>/<run>.json "
                     "(default: results/objects)")
-    ap.add_argument("--docs", default="", help="write OBJECTS.md and its figures into this folder from --out")
+    ap.add_argument("--docs", default="", help="fill objects.md's block and write its figures in this folder, from --out")
     a = ap.parse_args(argv)
     if a.episodes < 1:
         raise ArgError(f"--episodes must be at least 1, not {a.episodes}")
     if not a.runs and not a.docs:
         raise ArgError("name runs to study, or --docs DIR to write the page from the studies in --out")
     command.use_cpu()
-    runs = [report.load_run(d) for d in report.match_runs(a.runs) if os.path.exists(os.path.join(d, "policy.pt"))] \
+    chosen = [runs.load_run(d) for d in runs.match_runs(a.runs) if os.path.exists(os.path.join(d, "policy.pt"))] \
         if a.runs else []
-    if a.runs and not runs:
+    if a.runs and not chosen:
         raise ArgError(f"{a.runs!r}: no run with a policy.pt")
-    other = [r["dir"] for r in runs if (r["eval"] or {}).get("world") != sim.WORLD]
+    other = [r["dir"] for r in chosen if (r["eval"] or {}).get("world") != sim.WORLD]
     if other:
         raise ArgError(f"{other[0]}: not trained in world {sim.WORLD} (its eval.json says otherwise)")
     folder = os.path.join(a.out, a.scenes)
-    for d in ([folder] if runs else []) + ([a.docs] if a.docs else []):
+    for d in ([folder] if chosen else []) + ([a.docs] if a.docs else []):
         cli.check_dir_writable(d, "the output folder")
         os.makedirs(d, exist_ok=True)
-    for run in runs:
+    for run in chosen:
         out = study_run(run, a.episodes, a.scenes)
         res = {"dir": run["dir"], "task": run["cfg"]["task"], "world": sim.WORLD, "scenes": a.scenes,
                "error_mm": ERROR_MM, "summary": summary(out), "episodes": out}

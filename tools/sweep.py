@@ -35,7 +35,7 @@ from cli import ArgError  # noqa: E402
 # row of an experiment trains for the same number of episodes (--stop-held 0: no stopping when learned),
 # as the paper compares them. The seeds are added to each.
 BUDGET = lambda n: ["--train-episodes", str(n), "--stop-held", "0"]   # noqa: E731
-# the robust option (issue 53, docs/ROBUST.md): trained among every family, each image standardised, room for a tilt
+# the robust option (issue 53, docs/families.md): trained among every family, each image standardised, room for a tilt
 OPTION = {"--randomize": "light,colour,parts,objects,touch,mixed", "--image-norm": "image", "--tilt-deg": "1"}
 FLAGS = lambda d: [x for flag_value in d.items() for x in flag_value]     # noqa: E731  {flag: value} -> argv
 

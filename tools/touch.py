@@ -30,7 +30,7 @@ import contexts  # noqa: E402
 import evaluate  # noqa: E402
 import figures  # noqa: E402
 import policy  # noqa: E402
-import report  # noqa: E402
+import runs  # noqa: E402
 import scene  # noqa: E402
 import sim  # noqa: E402
 from cli import ArgError  # noqa: E402
@@ -55,8 +55,8 @@ def held_out(a):
     if a.run == "initial":
         task, roi, seed, pi = a.task, "task", 0, None
     else:
-        run = report.load_run(a.run)
-        task, roi, seed, pi = run["cfg"]["task"], run["cfg"]["roi"], run["cfg"]["seed"], report.load_policy(run)
+        run = runs.load_run(a.run)
+        task, roi, seed, pi = run["cfg"]["task"], run["cfg"]["roi"], run["cfg"]["seed"], runs.load_policy(run)
         if a.error_mm > pi.meta["e_r_max"] * 1000 + 1e-6:
             raise ArgError(f"--error-mm {a.error_mm:g}: this policy's view covers {pi.meta['e_r_max'] * 1000:g} mm")
     rows = []
@@ -131,8 +131,8 @@ def main(argv=None):
     command.use_cpu()
     if a.held_out:
         return held_out(a)
-    run = report.load_run(a.run)
-    pi = report.load_policy(run)
+    run = runs.load_run(a.run)
+    pi = runs.load_policy(run)
     out = {}
     for name, ctx in SCENES.items():
         with evaluate.eval_env(run["cfg"]["task"], pi, context=ctx, roi=run["cfg"]["roi"], e_r_mm=20.0) as env:
