@@ -88,8 +88,8 @@ def test_a_module_another_package_shadows_is_one_line_naming_it(tmp_path):
 
 def test_initial_policy_row_json_and_a_video_browsers_play(tmp_path, capsys, monkeypatch):
     out, video = tmp_path / "row.json", tmp_path / "ep.webm"
-    monkeypatch.setattr(scene, "VIDEO_W", 160)            # small frames: at 480 x 360, their renders and their
-    monkeypatch.setattr(scene, "VIDEO_H", 120)            # encoding took most of the test's time
+    monkeypatch.setattr(scene, "VIDEO_W", 64)             # small frames: at 640 x 480, their renders and their
+    monkeypatch.setattr(scene, "VIDEO_H", 48)             # encoding would take most of the test's time
     assert tacrl.main(["--task", "peg", "--eval", "initial", "--error-mm", "0", "--episodes", "1", "--json", str(out),
                        "--video", str(video)]) == 0
     stdout = capsys.readouterr().out
@@ -108,7 +108,7 @@ def test_initial_policy_row_json_and_a_video_browsers_play(tmp_path, capsys, mon
     while cap.read()[0]:
         frames += 1
     cap.release()
-    assert fourcc == b"VP90" and size == (160, 120) and evaluate.VIDEO_FPS >= 20
+    assert fourcc == b"VP90" and size == (64, 48) and evaluate.VIDEO_FPS >= 20
     assert frames == round(row["completion_time_s"][0] * evaluate.VIDEO_FPS)        # the simulation's own time
     assert cap_fps == evaluate.VIDEO_FPS
 
@@ -118,4 +118,4 @@ def test_a_video_format_this_opencv_cannot_write_is_one_line_before_any_work(tmp
     ok = tacrl.main(["--eval", "initial", "--episodes", "1", "--error-mm", "0", "--video", str(tmp_path / "ep.mp4")])
     err = capsys.readouterr().err
     assert (ok == 0 and (tmp_path / "ep.mp4").stat().st_size > 0) or \
-        (ok == 2 and err.count("\n") == 1 and "no H.264 encoder; name a .webm" in err and not os.listdir(tmp_path))
+        (ok == 2 and err.count("\n") == 1 and ".webm" in err and not os.listdir(tmp_path))

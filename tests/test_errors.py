@@ -21,7 +21,8 @@ import sim
 import tacrl
 
 TINY = ["--task", "peg", "--error-mm", "1", "--train-episodes", "3", "--warmup", "1", "--updates", "2",
-        "--batch", "8", "--episodes", "1", "--eval-levels", "1", "--buffer", "40"]
+        "--batch", "8", "--episodes", "1", "--eval-levels", "1", "--buffer", "40", "--threads", "1"]
+# (--threads 1: no second process for the evaluation, whose start-up would cost more than these runs)
 
 
 def snapshot(root):
@@ -147,7 +148,7 @@ def test_ctrl_c_while_training_says_how_to_resume(here, tmp_path, capsys, monkey
     monkeypatch.setattr(tacrl, "rollout", interrupted)
     assert tacrl.main(TINY + ["--run-dir", "new"]) == 130
     err = capsys.readouterr().err.strip()
-    assert err.count("\n") == 0 and err.endswith("continue with --resume new")
+    assert err.count("\n") == 0 and err.endswith("--resume new")         # what continues it
 
 
 def test_report_and_archive_mistakes(here, tmp_path, capsys, monkeypatch, unfinished_run):

@@ -148,16 +148,19 @@ def test_the_readme_families_table_shows_the_default_and_the_robust_option_alone
     assert "tilt_deg 1.0" in runs.OPTION_VIEW and "mixed" in runs.OPTION_VIEW
 
 
-def test_the_orders_sentence_says_it_holds_only_where_each_interval_lies_above_the_next():
+def test_the_papers_order_holds_only_where_each_interval_lies_above_the_next():
     mm = lambda **srs: {k + runs.MULTIMODAL: np.array(v) for k, v in srs.items()}   # noqa: E731
     apart = mm(ours=[0.9, 0.95, 1.0], keypoint=[0.6, 0.65, 0.7], visual=[0.0, 0.05, 0.1], vanilla=[0.0, 0.0, 0.1])
-    assert results.ordering_sentence(apart).endswith(": it holds.")
-    said = results.ordering_sentence(dict(apart, **mm(keypoint=[0.6, 0.65, 0.95])))
-    assert "not shown" in said and "ours is above keypoint RL on the mean only" in said
-    said = results.ordering_sentence(mm(ours=[0.3, 0.4], keypoint=[0.5, 0.6]))
-    assert "ours is not above keypoint RL" in said and "visual RL and vanilla RL are not run yet" in said
+    pairs, missing = results.order(apart)
+    assert len(pairs) == 5 and {v for *_, v in pairs} == {"above"} and not missing
+    pairs, _ = results.order(dict(apart, **mm(keypoint=[0.6, 0.65, 0.95])))
+    assert ("ours", "keypoint", "on the mean only") in pairs
+    pairs, missing = results.order(mm(ours=[0.3, 0.4], keypoint=[0.5, 0.6]))
+    assert pairs == [("ours", "keypoint", "not above")] and missing == ["visual", "vanilla"]
     assert [results.above(a, b) for a, b in (([0.9, 1.0], [0.1, 0.2]), ([0.5, 0.9], [0.4, 0.6]), ([0.1], [0.2]))] == \
         ["above", "on the mean only", "not above"]
+    for srs in (apart, mm(ours=[0.3, 0.4], keypoint=[0.5, 0.6]), {}):                # one sentence, whatever was run
+        assert results.ordering_sentence(srs) and "\n" not in results.ordering_sentence(srs)
 
 
 def test_the_report_calls_no_setting_the_papers_unless_it_is():

@@ -152,25 +152,33 @@ def table1(runs, ts_row):
     return [note, "", *md], readme, srs
 
 
+ORDER = (("ours", "keypoint"), ("ours", "visual"), ("ours", "vanilla"), ("keypoint", "visual"), ("keypoint", "vanilla"))
+
+
+def order(srs):
+    """The paper's Table 1 order (ours above keypoint RL, both above visual and vanilla RL, which did not learn) among
+    the rows with multimodal critics, by the one rule (above); srs: table1's third value. Returns ([(A, B, above(A,
+    B))] of the pairs run, [the rows not run]); the order holds where every pair is 'above' and none is missing."""
+    got = {n: srs[n + MULTIMODAL] for n in ("ours", "keypoint", "visual", "vanilla") if n + MULTIMODAL in srs}
+    pairs = [(a, b, above(got[a], got[b])) for a, b in ORDER if a in got and b in got]
+    return pairs, [n for n in ("ours", "keypoint", "visual", "vanilla") if n not in got]
+
+
 def ordering_sentence(srs):
-    """Whether the paper's Table 1 order (ours above keypoint RL, both above visual and vanilla RL, which did not
-    learn) holds among the rows with multimodal critics, by the one rule (above); srs: table1's third value."""
-    have = [n for n in ("ours", "keypoint", "visual", "vanilla") if n + MULTIMODAL in srs]
-    if not have:
+    """order() said: each row's SR at 20 mm, and whether the paper's order holds, or why it is not shown."""
+    pairs, missing = order(srs)
+    if len(missing) == 4:
         return "No row with multimodal critics is run in this world."
-    got = {n: srs[n + MULTIMODAL] for n in have}
     name = lambda n: "ours" if n == "ours" else TABLE1_ROWS[n].split(" (")[0]        # noqa: E731
+    got = {n: srs[n + MULTIMODAL] for n in ("ours", "keypoint", "visual", "vanilla") if n not in missing}
     said = ", ".join(f"{name(n)} {ci(v)}" + (f" ({len(v)} seed{'s' * (len(v) > 1)} so far)" if len(v) < 3 else "")
                      for n, v in got.items())
-    pairs = [(name(a), name(b), above(got[a], got[b])) for a, b in (
-        ("ours", "keypoint"), ("ours", "visual"), ("ours", "vanilla"), ("keypoint", "visual"), ("keypoint", "vanilla"))
-        if a in have and b in have]
-    short = [p for p in pairs if p[2] != "above"]
-    missing = [name(n) for n in ("ours", "keypoint", "visual", "vanilla") if n not in have]
-    verdict = ("it holds" if not short and not missing else "not shown, as " + "; ".join(
-        ([verdicts(short) + (" (their intervals overlap)" if any(v == "on the mean only" for *_, v in short) else "")]
-         if short else []) + ([f"{' and '.join(missing)} {'is' if len(missing) == 1 else 'are'} not run yet"]
-                              if missing else [])))
+    short = [(name(a), name(b), v) for a, b, v in pairs if v != "above"]
+    reasons = ([verdicts(short) + (" (their intervals overlap)" if any(v == "on the mean only" for *_, v in short)
+                                   else "")] if short else [])
+    reasons += [f"{listed([name(n) for n in missing])} {'is' if len(missing) == 1 else 'are'} not run yet"] \
+        if missing else []
+    verdict = "it holds" if not reasons else "not shown, as " + "; ".join(reasons)
     return (f"With multimodal critics (ours), SR at 20 mm ({SEEDS_NOTE}): {said}. The paper's order, ours above "
             f"keypoint RL and both above visual and vanilla RL: {verdict}.")
 
@@ -413,7 +421,8 @@ def findings(runs, srs, ts_row, gear_fig12):
         lines.append(f"- **Fig. 9** (gear, E_r after 200 episodes, mm): with vision {ci(obs['Time-series P-T-V'], '{:.1f}')}"
                      f", P-T {ci(obs['P-T'], '{:.1f}')}, time-series P-T {ci(obs['Time-series P-T'], '{:.1f}')}; the "
                      "paper's about 10, 5 and between; "
-                     + verdicts([("vision", "P-T", above(obs["Time-series P-T-V"], obs["P-T"]))])
+                     + verdicts([("vision", "P-T", above(obs["Time-series P-T-V"], obs["P-T"])),
+                                 ("time-series P-T", "P-T", above(obs["Time-series P-T"], obs["P-T"]))])
                      + ". [fig9](docs/fig9-observations.md)")
     trained = {k: [float(np.mean(r["m"]["success"][-15:])) for r in v]
                for k, v in groups_of([r for r in runs if r["eval"]], "gear", "curriculum").items()}
