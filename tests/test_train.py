@@ -199,7 +199,8 @@ def test_a_checkpoint_is_a_policy_too_and_a_policy_takes_a_batch(tiny_run, monke
 
 
 def test_a_worker_process_plays_every_other_episode_and_the_row_is_the_same(monkeypatch):
-    # every episode is a fresh world drawn from its seed alone, so who plays it changes nothing. The policy: a new
+    # every episode is a fresh world drawn from its seed alone, so who plays it changes nothing: the worker's episode
+    # is this process's to the last digit, and an evaluation with a worker gives it the odd episodes. The policy: a new
     # agent's, its residual scaled down so that the hand-designed part inserts
     torch.manual_seed(0)                            # (its weights, whatever tests ran before in this process)
     sac = tacrl.make_sac(tacrl.parse_args(["--task", "peg", "--threads", "1"]))
@@ -207,20 +208,16 @@ def test_a_worker_process_plays_every_other_episode_and_the_row_is_the_same(monk
         sac.actor.net[-1].weight.mul_(0.01)
     pi = evaluate.TrainedPolicy(evaluate.policy_file(sac, {"task": "peg", "obs": "ts-ptv", "roi": "task",
                                                            "vanilla": False, "ex_r": 0.001, "e_r_max": 0.02}))
-    here, real_play = {}, evaluate.play
-
-    def play(*a):       # this process plays a seed's episode once and gives it back when asked again (an episode
-        if a[2] not in here:                        # depends on its seed alone: test_sim); the worker's is compared
-            here[a[2]] = real_play(*a)
-        return here[a[2]]
-    monkeypatch.setattr(evaluate, "play", play)
-    with evaluate.eval_env("peg", pi) as env, evaluate.Worker() as worker:
-        alone = evaluate.evaluate(env, pi, 3, 5, log=lambda *_: None)
-        asked = []
-        monkeypatch.setattr(evaluate, "play", lambda *a: asked.append(a[2]) or play(*a))
-        shared = evaluate.evaluate(env, pi, 3, 5, log=lambda *_: None, worker=worker)
-    assert shared == alone and asked == [evaluate.episode_seed(5, 0), evaluate.episode_seed(5, 2)]
-    assert alone["success_rate"] > 0                   # (the episodes ended early, not all at the time limit)
+    seeds = [evaluate.episode_seed(5, k) for k in range(3)]
+    with evaluate.eval_env("peg", pi) as env, evaluate.Worker() as worker:   # (its imports overlap this episode)
+        here = evaluate.play(env, pi, seeds[1])
+        asked, there, results = [], [], worker.results
+        monkeypatch.setattr(evaluate, "play", lambda env, act, seed, video=None: asked.append(seed) or here)
+        monkeypatch.setattr(worker, "results", lambda: there.extend(results()) or there)
+        row = evaluate.evaluate(env, pi, 3, 5, log=lambda *_: None, worker=worker)
+    assert asked == [seeds[0], seeds[2]] and len(there) == 1             # this process the even ones, the worker 1
+    assert there[0][0] == here[0] and there[0][1:2] == here[1:2] and np.array_equal(there[0][2], here[2])
+    assert there[0][3] == here[3] and row["success_rate"] == 1.0 == here[0]    # (an episode that ended early)
 
 
 def test_validation_plays_the_greedy_action_of_the_agent_it_copies():
