@@ -142,12 +142,10 @@ R_DOWN = np.diag([1.0, -1.0, -1.0])                  # tool z down, tool x along
 # full camera view: 800 x 800 px (the paper's ROI-800*800), 90 deg, a wide-angle USB camera's (at 60 deg it
 # showed the board and little else: README difference 14); ROIs are windows of it
 CAM_FULL, CAM_FOV, CAM_NEAR, CAM_FAR = 800, 90.0, 0.01, 2.0
-VIDEO_W, VIDEO_H = 640, 480                          # px of the external view that videos show (VGA: a browser
-                                                     # shows it whole; TinyRenderer takes ~0.1 s a frame here)
+VIDEO_W, VIDEO_H = 640, 480                          # px of the external view that videos show (VGA, ~0.1 s a frame)
 
 WHITE, GREY, DARK, BLACK = (0.92, 0.92, 0.9, 1), (0.55, 0.55, 0.55, 1), (0.2, 0.2, 0.22, 1), (0.03, 0.03, 0.03, 1)
-WOOD = (0.62, 0.48, 0.34, 1)
-ORANGE, BRASS, TEAL = (0.95, 0.5, 0.1, 1), (0.8, 0.65, 0.2, 1), (0.1, 0.5, 0.55, 1)
+WOOD, ORANGE, BRASS, TEAL = (0.62, 0.48, 0.34, 1), (0.95, 0.5, 0.1, 1), (0.8, 0.65, 0.2, 1), (0.1, 0.5, 0.55, 1)
 
 
 # ---------------------------------------------------------------- the workcell and its contexts (Sec. 5.1.4, Fig. 12)
