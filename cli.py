@@ -1,10 +1,12 @@
 """cli.py: what every command of tacrl shares (tacrl.py, tools/): flags declared once as config fields (opt),
 parsed with no abbreviation, checked against their bounds, and read back from a run's JSON; a user's mistake as
-one line and exit code 2 (ArgError), failed work as exit code 1 (Failed), Ctrl-C as 130 (command); and the checks
-that a command can write where it will, before any work. It imports nothing of tacrl.
+one line and exit code 2 (ArgError), failed work as exit code 1 (Failed), a write that failed as 74 (Unwritable),
+Ctrl-C as 130 (command); and the checks that a command can write where it will, before any work. It imports nothing
+of tacrl.
 """
 import argparse
 import dataclasses
+import errno
 import math
 import os
 import signal
@@ -18,6 +20,15 @@ class ArgError(Exception):
 
 class Failed(Exception):
     """Work that was started and failed (a training run of tools/sweep.py): one line, exit code 1."""
+
+
+class Unwritable(Exception):
+    """A write that failed mid-run (a full disk, a read-only file system): one line, exit code 74 (sysexits.h's
+    EX_IOERR), which tools/sweep.py reports by name and does not retry."""
+
+
+UNWRITABLE = 74
+WRITE_ERRORS = (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM, errno.EIO, errno.EFBIG)
 
 
 def opt(default, help, choices=None, mode=None, bounds=None, open_bounds=False):
@@ -151,6 +162,9 @@ def command(prog, fn):
     except Failed as e:
         print(f"{prog}: failed: {e}", file=sys.stderr)
         return 1
+    except Unwritable as e:
+        print(f"{prog}: stopped: {e}", file=sys.stderr)
+        return UNWRITABLE
     except KeyboardInterrupt as e:
         print(f"\n{prog}: interrupted" + (f": {e}" if str(e) else ""), file=sys.stderr)
         return 130

@@ -159,6 +159,9 @@ def check(cfg):
         cfg.run_dir = cfg.run_dir or default_run_dir(cfg)
         check_dir_writable(cfg.run_dir, "--run-dir")
         left = os.listdir(cfg.run_dir) if os.path.isdir(cfg.run_dir) else []
+        busy = rundir.busy(cfg.run_dir)           # a second writer: the first's files stay as they are
+        if busy:
+            raise ArgError(f"--{'resume' if cfg.resume else 'run-dir'} {cfg.run_dir!r}: {busy}")
         if not cfg.resume and "config.json" in left:
             raise ArgError(f"{cfg.run_dir!r} already holds a run: continue it with --resume {cfg.run_dir} "
                            f"or pick another --run-dir")

@@ -14,6 +14,7 @@ A run directory that cannot be continued as it is raises RunError, naming what i
 import collections
 import copy
 import csv
+import io
 import json
 import os
 import pickle
@@ -36,9 +37,26 @@ EVAL_LIKE = 15               # the last episodes whose env time the ETA takes fo
 
 
 def save_atomic(obj, path):
-    """torch.save to path.tmp, then rename: an interrupt leaves the old file or the new one."""
-    torch.save(obj, path + ".tmp")
-    os.replace(path + ".tmp", path)
+    """torch.save to path.tmp, then rename: an interrupt, or a write that fails (a full disk), leaves the old file
+    whole. Serialized in memory first and written as bytes, so that a failed write is an OSError with its errno
+    (torch's own file writer turns one into a RuntimeError that names none)."""
+    buf = io.BytesIO()
+    torch.save(obj, buf)
+    replace_atomic(path, lambda f: f.write(buf.getbuffer()))
+
+
+def replace_atomic(path, write, mode="wb", **open_kw):
+    """write(f) to path.tmp, then rename it to path; where writing fails, path.tmp is removed and path stays as it
+    was (the last complete file)."""
+    tmp = path + ".tmp"
+    try:
+        with open(tmp, mode, **open_kw) as f:
+            write(f)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+        raise
 
 
 def load_file(path, device="cpu"):
@@ -56,6 +74,39 @@ class RunError(ValueError):
     """A run directory that cannot be continued as it is."""
 
 
+class Busy(RunError):
+    """A run directory another process is writing."""
+
+
+BUSY = "another process is writing this run directory; wait for it to end"
+
+
+def lock(run_dir):
+    """Take the run dir's lock (flock on the directory itself: no file is written) until the returned descriptor is
+    closed; Busy where another process holds it. The kernel frees it when its holder ends however it ends, so no
+    stale lock is ever left to clear by hand."""
+    import fcntl
+    os.makedirs(run_dir, exist_ok=True)
+    fd = os.open(run_dir, os.O_RDONLY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        os.close(fd)
+        raise Busy(BUSY)
+    return fd
+
+
+def busy(run_dir):
+    """Busy's message where another process holds the run dir's lock now, else None; it changes nothing."""
+    if not os.path.isdir(run_dir):
+        return None
+    try:
+        os.close(lock(run_dir))
+    except Busy as e:
+        return str(e)
+    return None
+
+
 # ---------------------------------------------------------------- config.json and metrics.csv
 def read_config(run_dir):
     """config.json as a dict; OSError, or ValueError where it is not a JSON object."""
@@ -67,8 +118,12 @@ def read_config(run_dir):
 
 
 def write_config(run_dir, d):
-    with open(os.path.join(run_dir, "config.json"), "w") as f:
-        json.dump(d, f, indent=2)
+    write_json(os.path.join(run_dir, "config.json"), d)
+
+
+def write_json(path, d):
+    """A JSON file written whole or not at all (replace_atomic)."""
+    replace_atomic(path, lambda f: json.dump(d, f, indent=2), mode="w")
 
 
 def read_log(path, columns, upto):
@@ -77,23 +132,25 @@ def read_log(path, columns, upto):
     if not upto:
         return []
     with open(path, newline="") as f:
-        reader = csv.DictReader(f)
-        rows = [r for r in reader if int(r["episode"]) <= upto]
+        reader = csv.DictReader(f)         # (a row cut short by a full disk lacks fields: it is past the checkpoint)
+        rows = [r for r in reader if None not in r.values() and int(r["episode"]) <= upto]
     if reader.fieldnames != columns or [int(r["episode"]) for r in rows] != list(range(1, upto + 1)):
         raise ValueError(f"{os.path.basename(path)}'s rows are not episodes 1-{upto} of this version's columns")
     return rows
 
 
 def write_log(path, columns, rows):
-    with open(path, "w", newline="") as f:
+    """A CSV log written whole (replace_atomic): a resumed run's metrics.csv, as its checkpoint has it."""
+    def write(f):
         csv.DictWriter(f, columns).writeheader()
         csv.DictWriter(f, columns).writerows(rows)
+    replace_atomic(path, write, mode="w", newline="")
 
 
 def read_metrics(run_dir):
-    """metrics.csv as {column: [values]}, numbers as floats."""
+    """metrics.csv as {column: [values]}, numbers as floats; a last row cut short (a full disk) is no row."""
     with open(os.path.join(run_dir, "metrics.csv")) as f:
-        rows = list(csv.DictReader(f))
+        rows = [r for r in csv.DictReader(f) if None not in r.values()]
     return {k: [float(r[k]) for r in rows] for k in (rows[0] if rows else METRICS)}
 
 
@@ -251,9 +308,18 @@ class Run:
     def __init__(self, cfg, state, buf, log, probe_update=None, eval_episodes=0):
         self.cfg, self.state, self.buf, self.log = cfg, state, buf, log
         self.dir = cfg.run_dir
+        self.lock = lock(self.dir)                   # before anything is read or written: one writer a run dir
+        try:
+            self._open(probe_update, eval_episodes)
+        except BaseException:
+            os.close(self.lock)
+            raise
+
+    def _open(self, probe_update, eval_episodes):
+        """The run dir read back where a checkpoint is (RunError where it cannot be), or begun."""
+        cfg, buf, log = self.cfg, self.buf, self.log
         self.files = ReplayFiles(os.path.join(self.dir, "replay"), buf.capacity, buf.obs)
         ckpt, metrics = os.path.join(self.dir, "ckpt.pt"), os.path.join(self.dir, "metrics.csv")
-        os.makedirs(self.dir, exist_ok=True)
         self.episode, self.total_steps, elapsed, replay = 0, 0, 0.0, {"i": 0, "n": 0, "files": []}
         if os.path.exists(ckpt):                     # else new, or stopped before its first episode was saved
             self.episode, self.total_steps, elapsed, replay = self._load(ckpt)
@@ -353,8 +419,12 @@ class Run:
         self.tb.flush()
 
     def close(self):
+        """TensorBoard's file, and the run dir's lock."""
         if self.tb is not None:
             self.tb.close()
+        if self.lock is not None:
+            os.close(self.lock)
+            self.lock = None
 
 
 def eta_seconds(done, episodes, warmup, env_s, update_s, probe_s):

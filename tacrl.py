@@ -13,7 +13,6 @@ The file reads top to bottom: the run's config (every flag, once), Algorithm 1 (
 command line's checks and --eval are command.py's (cli.py: what every command shares). What a run directory
 holds is rundir.py's; several seeds and the paper's experiments at once: tools/sweep.py.
 """
-import json
 import os
 import signal
 import sys
@@ -173,6 +172,8 @@ def train(cfg, log=lambda msg: print(msg, flush=True)):
         try:
             # Lines 7-12, learn the residual TA-MRP
             for ep in range(run.episode, cfg.train_episodes):               # line 8: for n in max-episodes
+                if stop.stopped:                              # (resumed after it stopped as learned: evaluate it)
+                    break
                 env.set_ranges(*curr.ranges())                               # E_r and Ex_r where line 11 left them
                 # line 9, interact with the environment, and store in R. The warm-up acts uniformly at random
                 # (Spinning Up's start steps), so that the critics see every action before the actor follows them
@@ -190,12 +191,12 @@ def train(cfg, log=lambda msg: print(msg, flush=True)):
                          ex_r_mm=env.ex_r * 1000, delta=curr.delta)         # a kill loses at most the episode in flight
                 if learned:
                     break
+            return finish(cfg, sac, curr, run.seconds(), log, worker)
         except KeyboardInterrupt:
             raise KeyboardInterrupt(f"every finished episode is saved; continue with --resume {cfg.run_dir}")
         finally:
             env.close()
-            run.close()
-        return finish(cfg, sac, curr, run.seconds(), log, worker)
+            run.close()                                                      # (the run dir's lock with it)
 
 
 def rollout(env, act, seed=None):
@@ -279,6 +280,7 @@ class StopRule:
 
     def __init__(self, cfg):
         self.stop_held, self.final_mm, self.episodes, self.held = cfg.stop_held, cfg.error_mm, cfg.train_episodes, 0
+        self.stopped = False                         # passed: what is left is the evaluation (kept in ckpt.pt)
 
     def learned(self, at_final, validate, log, ep):
         self.held = self.held + 1 if at_final else 0                  # episodes in a row at the final range
@@ -289,13 +291,14 @@ class StopRule:
             f"{self.final_mm:g} mm")
         if wins >= VAL_WINS:
             log(f"stopped as learned at episode {ep + 1} (--stop-held 0 trains all {self.episodes})")
-        return wins >= VAL_WINS
+        self.stopped = wins >= VAL_WINS
+        return self.stopped
 
     def state_dict(self):
-        return {"held": self.held}
+        return {"held": self.held, "stopped": self.stopped}
 
     def load_state_dict(self, d):                # (a checkpoint of before issue 49's change also holds 'passes')
-        self.held = int(d["held"])
+        self.held, self.stopped = int(d["held"]), bool(d.get("stopped", False))
 
 
 def validate(cfg, sac, curr, worker=None):
@@ -345,8 +348,7 @@ def finish(cfg, sac, curr, seconds, log, worker=None):
     result = {"task": cfg.task, "obs": cfg.obs, "curriculum": cfg.curriculum, "context": cfg.context, "roi": cfg.roi,
               "seed": cfg.seed, "eval_seed": evaluate.EVAL_SEED + cfg.seed, "train_episodes": trained,
               "world": sim.WORLD, "train_minutes": round(seconds / 60, 1), "rows": rows}
-    with open(os.path.join(cfg.run_dir, "eval.json"), "w") as f:
-        json.dump(result, f, indent=2)
+    rundir.write_json(os.path.join(cfg.run_dir, "eval.json"), result)     # whole or not at all: the run's end
     log(f"wrote {cfg.run_dir}/policy.pt, metrics.csv, curves.png, eval.json")
     return result
 
@@ -366,8 +368,16 @@ def main(argv=None):
     def run(cfg):
         try:
             return command.run_evaluation(cfg, load_policy) if cfg.eval else train(cfg)
+        except rundir.Busy as e:                   # a second writer
+            raise ArgError(f"--{'resume' if cfg.resume else 'run-dir'} {cfg.run_dir!r}: {e}")
         except rundir.RunError as e:               # a run dir that cannot be continued as it is
             raise ArgError(f"--resume {cfg.run_dir!r}: {e}")
+        except OSError as e:                       # a full disk, a file system gone read-only: the last checkpoint
+            if e.errno not in cli.WRITE_ERRORS:    # is whole (rundir.replace_atomic)
+                raise
+            raise cli.Unwritable(f"cannot write {e.filename or cfg.run_dir or 'a file'} ({e.strerror})"
+                                 + (f"; every finished episode is saved: free space, then --resume {cfg.run_dir}"
+                                    if cfg.run_dir and not cfg.eval else ""))
     return cli.command("tacrl", lambda: run(parse_args(sys.argv[1:] if argv is None else list(argv))))
 
 

@@ -94,23 +94,112 @@ def test_progress_lines_from_runs_started_at_once_stay_whole():
                                                  for i in range(4)]
 
 
-def test_a_sweep_runs_as_ray_tasks_on_a_local_instance(tmp_path, monkeypatch):
+def killed_once(marker, then="print('again')"):
+    """A stand-in run that kills itself (SIGKILL) the first time, as a lost worker's run ends, then does `then`."""
+    return [sys.executable, "-c", f"import os, signal\nif not os.path.exists({marker!r}):\n    open({marker!r}, 'w')"
+            f"\n    os.kill(os.getpid(), signal.SIGKILL)\n{then}"]
+
+
+def test_a_killed_run_is_resumed_by_the_sweep_and_a_run_that_cannot_write_is_not(tmp_path, monkeypatch):
+    jobs = sweep.plan([], [0, 1, 2], str(tmp_path / "runs"), TINY)
+    commands = {jobs[0].run_dir: killed_once(str(tmp_path / "m0")),                      # killed once: resumed
+                jobs[1].run_dir: killed_once(str(tmp_path / "m1"), "raise SystemExit(74)"),  # then a full disk
+                jobs[2].run_dir: killed_once(str(tmp_path / "m2"))}                      # killed, no retries left
+    monkeypatch.setattr(sweep, "job_command", lambda job, threads: commands[job.run_dir])
+    lines = []
+    done = dict((j.run_dir, code) for j, code in sweep.run_local(jobs[:2], 2, 1, log=lines.append, retries=2))
+    assert done == {jobs[0].run_dir: 0, jobs[1].run_dir: 74}
+    assert open(os.path.join(jobs[0].run_dir, "train.log")).read().split() == ["again"]
+    assert sum("killed by signal 9: resumed" in x for x in lines) == 2          # each once, the disk's not again
+    assert any(jobs[1].run_dir in x and sweep.reason(74) in x for x in lines)
+    (done, code), = sweep.run_local(jobs[2:], 1, 1, log=lines.append, retries=0)
+    assert code == sweep.KILLED and "killed" in sweep.reason(code)
+    # a retry of a run that had begun (its config.json written) resumes it, whatever flags its first try had
+    import subprocess
+    os.makedirs(jobs[0].run_dir, exist_ok=True)
+    open(os.path.join(jobs[0].run_dir, "config.json"), "w").write("{}")
+    seen = []
+    monkeypatch.setattr(subprocess, "run", lambda cmd, **kw: seen.append(cmd) or subprocess.CompletedProcess(cmd, 0))
+    assert sweep.run_job(REAL_COMMAND(jobs[0], 1), jobs[0].run_dir, {}, str(tmp_path)) == 0
+    assert seen[0][1:] == [os.path.join(sweep.PROJECT, "tacrl.py"), "--resume", jobs[0].run_dir, "--threads", "1"]
+
+
+@pytest.fixture(scope="module")
+def ray_local():
+    """A local Ray instance of 2 CPUs for this file's tests."""
+    ray = pytest.importorskip("ray", reason="the `ray` extra is not installed")
+    ray.init(num_cpus=2, include_dashboard=False, object_store_memory=100 * 2 ** 20, log_to_driver=False)
+    yield ray
+    ray.shutdown()
+
+
+def test_a_sweep_runs_as_ray_tasks_on_a_local_instance(tmp_path, monkeypatch, ray_local):
     """The plan's commands as Ray tasks, each writing its run dir's log where the driver runs (the same paths on
     every node); stand-in commands, as in the local test."""
-    ray = pytest.importorskip("ray", reason="the `ray` extra is not installed")
     jobs = sweep.plan([], [0, 1], str(tmp_path / "runs"), TINY)
     monkeypatch.setattr(sweep, "job_command", lambda job, threads: [
         sys.executable, "-c", f"import os; print('run', {job.run_dir!r}, os.environ['OMP_NUM_THREADS'], os.getcwd())"])
     monkeypatch.chdir(tmp_path)
     lines = []
-    ray.init(num_cpus=2, include_dashboard=False, object_store_memory=100 * 2 ** 20, log_to_driver=False)
-    try:
-        done = sweep.run_ray(jobs, "local", 1, log=lines.append)
-    finally:
-        ray.shutdown()
+    done = sweep.run_ray(jobs, "local", 1, log=lines.append)
     assert [code for _, code in done] == [0, 0] and sum("finished (" in x for x in lines) == 2
     for j in jobs:
         assert open(os.path.join(j.run_dir, "train.log")).read().split() == ["run", j.run_dir, "1", str(tmp_path)]
+
+
+def test_a_run_killed_mid_training_on_ray_is_retried_and_comes_out_as_one_never_stopped(tmp_path, monkeypatch,
+                                                                                        ray_local):
+    # tacrl.py itself, its episodes 9 steps long (sitecustomize, as the README's command in test_cli): killed with
+    # SIGKILL after its 2nd episode, Ray's retry resumes it from its checkpoint
+    import csv
+    import json
+    import signal
+    import threading
+    import time
+    import sim
+    hidden = tmp_path / "hidden"
+    hidden.mkdir()
+    (hidden / "sitecustomize.py").write_text(f"import sys\nsys.path.insert(0, {sweep.PROJECT!r})\nimport sim\n"
+                                             "sim.MAX_STEPS = 9\n")
+    real_env = sweep.thread_env                        # what each run's process gets besides Ray's worker's own
+    monkeypatch.setattr(sweep, "thread_env", lambda threads: {**real_env(threads), "PYTHONPATH": str(hidden)})
+    flags = [*TINY[:TINY.index("--train-episodes")], "--train-episodes", "3", *TINY[TINY.index("--warmup"):]]
+    jobs = sweep.plan([], [0], str(tmp_path / "runs"), flags)
+    run_dir = jobs[0].run_dir
+    killed = []
+
+    def kill_after_episode_2():
+        while not killed:
+            time.sleep(0.05)
+            try:
+                with open(os.path.join(run_dir, "metrics.csv")) as f:
+                    episodes = len(list(csv.DictReader(f)))
+            except OSError:
+                episodes = 0
+            if episodes >= 2:
+                for pid in os.listdir("/proc"):
+                    try:
+                        cmdline = open(f"/proc/{pid}/cmdline", "rb").read().split(b"\0")
+                    except OSError:
+                        continue
+                    if run_dir.encode() in cmdline and any(c.endswith(b"tacrl.py") for c in cmdline):
+                        os.kill(int(pid), signal.SIGKILL)
+                        killed.append(pid)
+    watcher = threading.Thread(target=kill_after_episode_2, daemon=True)
+    watcher.start()
+    lines = []
+    (job, code), = sweep.run_ray(jobs, "local", 1, log=lines.append, retries=2)
+    killed.append("done")
+    log = open(os.path.join(run_dir, rundir.LOG)).read()
+    assert code == 0 and len(killed) == 2 and f"resumed {run_dir} at episode" in log
+    # the same run never stopped, here: equal to the last digit but for the times
+    monkeypatch.setattr(sim, "MAX_STEPS", 9)
+    whole = str(tmp_path / "whole")
+    tacrl.train(tacrl.parse_args([*flags, "--seed", "0", "--threads", "1", "--run-dir", whole]), log=lambda *_: None)
+    strip = lambda d: ([{k: v for k, v in r.items() if k not in ("env_s", "update_s", "elapsed_s")}   # noqa: E731
+                        for r in csv.DictReader(open(os.path.join(d, "metrics.csv")))],
+                       {k: v for k, v in json.load(open(os.path.join(d, "eval.json"))).items() if k != "train_minutes"})
+    assert strip(run_dir) == strip(whole)
 
 
 @pytest.mark.parametrize("argv, names", [     # what the one line names: the flag, or the experiment at fault

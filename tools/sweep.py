@@ -2,7 +2,9 @@
 directory of its own, executed as local processes (the default: at most one a core, threads an update x
 processes <= cores) or as Ray tasks (the `ray` extra: a local Ray instance, or a cluster's address).
 A run that has finished (eval.json) is skipped, one that was stopped is resumed, so the same command
-picks a sweep up where it stopped; report.py reads whatever has finished.
+picks a sweep up where it stopped; report.py reads whatever has finished. A run whose process or machine is lost
+(killed by a signal) is resumed from its checkpoint, up to --retries times (on Ray, by Ray's task retries); one
+that stops on a full or read-only disk (exit code 74) or a mistake (2) is reported by name and not retried.
 
     python tools/sweep.py --list                                  # the experiments and their runs
     python tools/sweep.py table1 --seeds 0,1,2                     # Table 1's learned rows -> runs/table1/...
@@ -136,13 +138,32 @@ def thread_env(threads):
 
 
 def run_job(cmd, run_dir, env, cwd, log_name=rundir.LOG):
-    """One run in `cwd`, its output appended to its run dir's train.log; its exit code. It reads only the standard
-    library, so that a Ray worker on any node, where this module may not be importable, can run it."""
+    """One run in `cwd`, its output appended to its run dir's train.log; its exit code. A run that began already
+    (its config.json is there: this is a retry) is resumed from its checkpoint. A run killed by a signal (its
+    process, or the machine, gone) raises ChildProcessError, which the sweep retries (Ray: its task retries). It
+    reads only the standard library, so that a Ray worker on any node, where this module may not be importable, can
+    run it."""
     import os
     import subprocess
     os.makedirs(run_dir, exist_ok=True)
+    if "--run-dir" in cmd and os.path.exists(os.path.join(run_dir, "config.json")):   # a new run's command, begun
+        cmd = [*cmd[:2], "--resume", run_dir, *cmd[cmd.index("--threads"):]]       # (its --threads kept)
     with open(os.path.join(run_dir, log_name), "a") as log:
-        return subprocess.run(cmd, stdout=log, stderr=subprocess.STDOUT, env={**os.environ, **env}, cwd=cwd).returncode
+        code = subprocess.run(cmd, stdout=log, stderr=subprocess.STDOUT, env={**os.environ, **env}, cwd=cwd).returncode
+    if code < 0:
+        raise ChildProcessError(f"{run_dir}: killed by signal {-code}")
+    return code
+
+
+KILLED = -9                 # the exit code a run killed every time it was tried is reported with
+REASONS = {2: "a mistake in its flags or files", cli.UNWRITABLE: "its run dir could not be written (a full disk, or "
+           "read-only): free space, then the same command resumes it", 130: "interrupted",
+           KILLED: "killed every time it was tried"}
+
+
+def reason(code):
+    """Why a run failed, by its exit code."""
+    return REASONS.get(code, f"exit code {code}")
 
 
 def last_episode(run_dir):
@@ -172,7 +193,7 @@ class Progress:
         with self.lock:
             self.running.remove(job)
             self.log(f"[{rundir.fmt_time(time.time() - self.t0)}] {job.run_dir}: "
-                     f"{'finished' if code == 0 else f'failed, exit code {code}'} ({left} of {self.todo} left)")
+                     f"{'finished' if code == 0 else f'failed: {reason(code)}'} ({left} of {self.todo} left)")
 
     def tick(self):
         with self.lock:
@@ -195,25 +216,32 @@ def collect(pending, ready_of, result_of, progress):
     return done
 
 
-def run_local(jobs, parallel, threads, log=lambda m: print(m, flush=True)):
+def run_local(jobs, parallel, threads, log=lambda m: print(m, flush=True), retries=2):
     """The jobs as local processes, at most `parallel` at a time, each waited on by a thread that runs it as a Ray
-    task does (run_job); [(job, exit code)]."""
+    task does (run_job), a killed one again from its checkpoint up to `retries` times; [(job, exit code)]."""
     import concurrent.futures as cf
     progress = Progress(len(jobs), log)
 
     def start(job):
         progress.started(job)
-        return run_job(job_command(job, threads), job.run_dir, thread_env(threads), os.getcwd())
+        for attempt in range(retries + 1):
+            try:
+                return run_job(job_command(job, threads), job.run_dir, thread_env(threads), os.getcwd())
+            except ChildProcessError as e:
+                log(f"{e}: {'resumed from its checkpoint' if attempt < retries else 'not tried again'} "
+                    f"({attempt + 1} of {retries + 1} tries)")
+        return KILLED
     with cf.ThreadPoolExecutor(parallel) as pool:
         pending = {pool.submit(start, j): j for j in jobs}
         return collect(pending, lambda fs: cf.wait(fs, timeout=1.0, return_when=cf.FIRST_COMPLETED)[0],
                        lambda f: f.result(), progress)
 
 
-def run_ray(jobs, address, threads, log=lambda m: print(m, flush=True), init=None):
+def run_ray(jobs, address, threads, log=lambda m: print(m, flush=True), init=None, retries=2):
     """The jobs as Ray tasks of `threads` CPUs each (Ray starts as many at once as the CPUs allow), on a local
     instance (address "local") or a running cluster's ("auto", "HOST:6379", "ray://HOST:10001"); [(job, exit
-    code)]. A task whose worker dies is not retried (max_retries 0): the run is resumable by hand."""
+    code)]. A task whose worker dies (a preempted node), or whose run is killed, is retried by Ray up to `retries`
+    times (its max_retries, and retry_exceptions for run_job's ChildProcessError), resuming from its checkpoint."""
     try:
         import ray
     except ImportError:
@@ -227,13 +255,20 @@ def run_ray(jobs, address, threads, log=lambda m: print(m, flush=True), init=Non
             raise ArgError(f"--ray {address}: no Ray cluster there ({cli.describe(e)})")
     # the task travels by value: no module to import there
     ray.cloudpickle.register_pickle_by_value(sys.modules[__name__])
-    task = ray.remote(num_cpus=threads, max_retries=0)(run_job)
+    task = ray.remote(num_cpus=threads, max_retries=retries, retry_exceptions=[ChildProcessError])(run_job)
     # paths as here
     pending = {task.remote(job_command(j, threads), j.run_dir, thread_env(threads), os.getcwd()): j for j in jobs}
     progress = Progress(len(jobs), log)
     for j in jobs:
         progress.started(j, "queued")          # Ray starts each when a node has its CPUs free
-    return collect(pending, lambda refs: ray.wait(refs, num_returns=1, timeout=1.0)[0], ray.get, progress)
+    def code_of(ref):                          # its exit code; a task that failed every try: killed
+        try:
+            return ray.get(ref)
+        except ray.exceptions.RayError as e:
+            log(f"{pending_jobs[ref].run_dir}: not tried again after {retries + 1} tries ({type(e).__name__})")
+            return KILLED
+    pending_jobs = dict(pending)
+    return collect(pending, lambda refs: ray.wait(refs, num_returns=1, timeout=1.0)[0], code_of, progress)
 
 
 def parse_list(text, what, cast=str):
@@ -260,6 +295,8 @@ def main(argv=None):
     ap.add_argument("--ray", default="", metavar="ADDRESS", help="run as Ray tasks: 'local' (a Ray instance on this "
                     "machine), 'auto' (the cluster this machine is in), or a cluster's address")
     ap.add_argument("--threads", type=int, default=1, help="threads an update of each run, 1 or 2 (default: 1)")
+    ap.add_argument("--retries", type=int, default=2, help="times a run that was killed (its process or its machine "
+                    "gone) is resumed from its checkpoint (default: 2); a run that failed otherwise is not retried")
     ap.add_argument("--list", action="store_true", help="list the experiments' runs and their state, and stop")
     ap.add_argument("--dry-run", action="store_true", help="print the commands, run nothing")
     a = ap.parse_args(argv)
@@ -276,8 +313,8 @@ def main(argv=None):
                      f.split("=")[0] in ("--seed", "--run-dir", "--resume", "--eval", "--threads") for f in flags):
         raise ArgError("the flags after -- are a run's: the sweep sets --seed, --run-dir and --threads itself "
                        "(--eval and --resume are for one run: tacrl.py)")
-    if not 1 <= a.threads <= 2 or a.parallel < 0:
-        raise ArgError("--threads must be 1 or 2 and --parallel at least 0")
+    if not 1 <= a.threads <= 2 or a.parallel < 0 or a.retries < 0:
+        raise ArgError("--threads must be 1 or 2, --parallel and --retries at least 0")
     jobs = plan(names, parse_list(a.seeds, "--seeds", int), a.root, flags)
     todo = [j for j in jobs if j.state != "done"]
     cores = os.cpu_count() or 1
@@ -292,13 +329,13 @@ def main(argv=None):
     print(f"{len(jobs)} runs, {len(jobs) - len(todo)} finished already; {len(todo)} to run "
           + (f"as Ray tasks ({a.ray})" if a.ray else "here"), flush=True)
     if a.ray:
-        done = run_ray(todo, a.ray, a.threads)
+        done = run_ray(todo, a.ray, a.threads, retries=a.retries)
     else:
-        done = run_local(todo, parallel, a.threads)
-    failed = [j.run_dir for j, code in done if code]
+        done = run_local(todo, parallel, a.threads, retries=a.retries)
+    failed = [f"{j.run_dir} ({reason(code)})" for j, code in done if code]
     if failed:
-        raise cli.Failed(f"{len(failed)} of {len(todo)} runs failed (see their {rundir.LOG}): {', '.join(failed)}; "
-                           "the same command resumes them")
+        raise cli.Failed(f"{len(failed)} of {len(todo)} runs failed (see their {rundir.LOG}): {'; '.join(failed)}; "
+                         "the same command resumes them")
     return 0
 
 
