@@ -11,7 +11,8 @@ import scenes
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 PAGES = [os.path.join(ROOT, "README.md")] + sorted(glob.glob(os.path.join(ROOT, "docs", "*.md")))
-OTHER_BLOCKS = ("code-map", "critics-runs", "objects")       # report.py's code map, compare.py's, objects.py's
+OTHER_BLOCKS = ("code-map", "critics-runs", "objects", "scenes")   # report.py's code map, compare.py's, objects.py's,
+#                                                                     scenes.py's every scene
 
 
 def read(path):

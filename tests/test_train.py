@@ -480,6 +480,19 @@ def test_every_context_is_evaluated_once_and_the_table_names_each(tiny_run, tmp_
         scenes.make(tiny_run["dir"], str(out), levels=(1.0,), episodes=1, log=lambda *_: None)
 
 
+def test_every_held_out_scene_of_a_family_is_played_and_its_rates_cached(tiny_run, tmp_path, monkeypatch):
+    monkeypatch.setattr(sim, "MAX_STEPS", SHORT)
+    seen, real = [], evaluate.evaluate
+    monkeypatch.setattr(evaluate, "evaluate", lambda env, *a, **k: (real(env, *a, **k), seen.append(env.scene))[0])
+    rates = scenes.scene_rates((tiny_run["dir"], "parts", 3, 1))
+    parts = [contexts.family_context("parts", contexts.FAMILY_TEST_SEED0 + i, "peg") for i in range(3)]
+    assert len(rates) == 3 and all(0 <= x <= 1 for x in rates) and seen == parts       # scene by scene, held out
+    monkeypatch.setattr(evaluate, "evaluate", lambda *a, **k: pytest.fail("evaluated again"))
+    assert scenes.scene_rates((tiny_run["dir"], "parts", 3, 1)) == rates
+    with pytest.raises(pytest.fail.Exception):                                    # another number of scenes: anew
+        scenes.scene_rates((tiny_run["dir"], "parts", 4, 1))
+
+
 def test_a_run_trained_in_the_families_scenes_is_tested_on_their_held_out_seeds_alone(tiny_run, tmp_path, monkeypatch):
     # the named backgrounds are of the kinds a --randomize run has met: it is in the families' table alone
     monkeypatch.setattr(sim, "MAX_STEPS", SHORT)

@@ -104,6 +104,9 @@ def main(argv=None):
     ap.add_argument("--contexts", action="store_true", help="evaluate ours and its full view in every context and "
                     "family instead (Fig. 12 beyond the paper: docs/contexts.md, families.md)")
     ap.add_argument("--families", action="store_true", help="the families alone instead (docs/families.md)")
+    ap.add_argument("--scenes", action="store_true", help="every held-out scene of every family instead, "
+                    f"{scenes.SCENES} a family, {scenes.SCENE_EPISODES} episodes each (default runs: "
+                    f"{scenes.SCENE_RUNS}; docs/families.md's block scenes)")
     ap.add_argument("--compare", default="", metavar="NAME", help="a table and curves of the runs by learning setting "
                     "instead, to --out/NAME.md and NAME.png")
     ap.add_argument("--check", action="store_true", help="check that the pages' blocks are what the report makes of "
@@ -124,6 +127,9 @@ def main(argv=None):
         compare.write_compare(a.runs, a.out, a.compare)
     elif a.check:
         check(a.out, a.readme)
+    elif a.scenes:
+        cli.check_dir_writable(a.out, "--out")
+        write(scenes.scene_table(a.runs or scenes.SCENE_RUNS, jobs=a.jobs), a.out, a.readme)
     elif a.contexts or a.families:
         cli.check_dir_writable(a.out, "--out")
         write(scenes.make(a.runs or scenes.CONTEXT_RUNS, a.out, jobs=a.jobs, named=a.contexts), a.out, a.readme)

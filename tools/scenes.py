@@ -17,6 +17,7 @@ from runs import (LEVELS, LOO_VIEWS, OPTION_VIEW, RESULTS_DIR, VIEWS, evaluate_j
                   view_of)
 
 BLOCKS = ("families", "readme-families", "readme-findings-scenes", "contexts")   # the pages' blocks make() fills
+# (and scene_table, the block `scenes`)
 CONTEXT_RUNS = ",".join(f"{RESULTS_DIR}/{e}/*" for e in ("contexts", "robust", "option", "option-loo"))
 FAMILY_MM = 20.0                       # the error range the families are tested at
 FAMILY_WHAT = {"place": "the board 12-32 cm from training's place, turned up to 0.5 rad",
@@ -168,6 +169,72 @@ def findings(families):
                          f"{np.mean(default[worst]):.2f}; the robust option's lowest cell, any family and seed, "
                          f"{low:.2f}. [families](docs/families.md)")
     return lines
+
+
+# ---------------------------------------------------------------- every scene, not the family's mean (issue 83)
+SCENES, SCENE_EPISODES = 100, 3        # held-out scenes a family, episodes a scene: a family's worst decile shows
+SCENE_RUNS = f"{RESULTS_DIR}/option/*"
+
+
+def scene_rates(job):
+    """One (run dir, family, scenes, episodes) evaluation: the SR at FAMILY_MM in each of the family's first
+    `scenes` held-out scenes (seeds from contexts.FAMILY_TEST_SEED0 up), `episodes` each on the run's evaluation
+    seeds; cached in the run dir (eval-scenes-FAMILY.json) under the family's definition and the world's version.
+    Runs in a worker."""
+    import torch
+    import evaluate
+    from runs import load_policy, read_json
+    d, family, scenes, episodes = job
+    torch.set_num_threads(1)
+    run = load_run(d)
+    key = {"world": sim.WORLD, "context": contexts.context_key(f"{family}:test", run["cfg"]["task"]),
+           "scenes": scenes, "episodes": episodes, "error_mm": FAMILY_MM}
+    path = os.path.join(d, f"eval-scenes-{family}.json")
+    cached = read_json(path) if os.path.exists(path) else {}
+    if {k: v for k, v in cached.items() if k != "rates"} == key:
+        return cached["rates"]
+    pi, rates = load_policy(run), []
+    with evaluate.eval_env(run["cfg"]["task"], pi, f"{family}:{contexts.FAMILY_TEST_SEED0}", run["cfg"]["roi"],
+                           run["cfg"]["clearance_mm"], FAMILY_MM) as env:
+        for i in range(scenes):
+            env.context = f"{family}:{contexts.FAMILY_TEST_SEED0 + i}"          # this scene, each episode of it
+            row = evaluate.evaluate(env, pi, episodes, evaluate.EVAL_SEED + run["cfg"]["seed"], log=lambda *_: None)
+            rates.append(row["success_rate"])
+    rundir.write_json(path, {**key, "rates": rates})
+    return rates
+
+
+def scene_table(patterns=SCENE_RUNS, scenes=SCENES, episodes=SCENE_EPISODES, jobs=1, log=print):
+    """docs/families.md's block `scenes`: for each task, view and family, over the runs' seeds, the mean SR over
+    the family's held-out scenes, the share of scenes where the policy fails more often than it succeeds (SR below
+    0.5), and the mean of its worst decile of scenes; each seed's worst decile in brackets."""
+    import concurrent.futures as cf
+    import multiprocessing as mp
+    runs = [r for r in (load_run(d) for d in match_runs(patterns)) if r["eval"] and view_of(r["cfg"])]
+    todo = [(r["dir"], f, scenes, episodes) for r in runs for f in sim.FAMILIES]
+    log(f"  {len(runs)} runs x {len(sim.FAMILIES)} families x {scenes} scenes x {episodes} episodes in {jobs} "
+        "processes (cached ones are read back)")
+    if jobs == 1:
+        got = [scene_rates(j) for j in todo]
+    else:
+        with cf.ProcessPoolExecutor(jobs, mp_context=mp.get_context("spawn")) as ex:
+            got = list(ex.map(scene_rates, todo))
+    by = {}
+    for (d, family, _, _), rates in zip(todo, got):
+        r = next(r for r in runs if r["dir"] == d)
+        by.setdefault((r["cfg"]["task"], view_of(r["cfg"])), {}).setdefault(family, []).append(np.array(rates))
+    worst = lambda x: float(np.mean(np.sort(x)[:max(1, len(x) // 10)]))           # noqa: E731  (its worst decile)
+    md = [f"Each family's first {scenes} held-out scenes, {episodes} episodes each at {FAMILY_MM:g} mm (world "
+          f"{sim.WORLD}); each cell: the mean SR over the scenes / the share of scenes with SR below 0.5 / the mean "
+          "of the worst decile of scenes, means over seeds (each seed's worst decile in brackets).", "",
+          "| task | view | seeds | " + " | ".join(sim.FAMILIES) + " |", "|---" * (3 + len(sim.FAMILIES)) + "|"]
+    for (task, view), fams in sorted(by.items()):
+        cells = [f"{np.mean([x.mean() for x in v]):.2f} / {np.mean([(x < 0.5).mean() for x in v]):.2f} / "
+                 f"{np.mean([worst(x) for x in v]):.2f} ({' '.join(f'{worst(x):.2f}' for x in v)})"
+                 for v in (fams[f] for f in sim.FAMILIES)]
+        md.append(f"| {task} | {'robust option' if view == OPTION_VIEW else view} | {len(fams[sim.FAMILIES[0]])} | "
+                  + " | ".join(cells) + " |")
+    return {"scenes": "\n".join(md)}
 
 
 # ---------------------------------------------------------------- the named contexts
