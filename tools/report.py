@@ -83,7 +83,8 @@ def check(out_dir, readme, log=print):
         cached = os.path.join(out_dir, "two-step-peg-20mm.json")
         if os.path.exists(cached):              # the two-step row, as the report keeps it with its world
             shutil.copy(cached, tmp)
-        made = {**results.make(out_dir=tmp, log=quiet), **scenes.make(out_dir=tmp, log=quiet), "code-map": code_map()}
+        made = {**results.make(out_dir=tmp, log=quiet), **scenes.make(out_dir=tmp, log=quiet), "code-map": code_map(),
+                **scenes.scene_table(log=quiet)}
     differ = [f"{p}: {name}" for p in page_paths(out_dir, readme) for name in pages.stale(p, made)]
     if differ:
         raise cli.Failed(f"{'; '.join(differ)}: not what the report makes of {RESULTS_DIR}/ now (python "
