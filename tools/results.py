@@ -106,6 +106,11 @@ def two_step_row(out_dir, world, log):
     return row
 
 
+def paper_sr_ct(paper):
+    """PAPER_TABLE1's cell without the forces: 'SR, CT', or what it says instead."""
+    return ", ".join(paper.split(", ")[:2])
+
+
 def table1(runs, ts_row):
     """Table 1 (docs/table1.md's), the README's shorter one, and {row name: its seeds' SR at 20 mm}: a row a method
     and critics, every learned row after the paper's budget of episodes."""
@@ -126,7 +131,7 @@ def table1(runs, ts_row):
         paper, label = PAPER_TABLE1[base], TABLE1_ROWS[base]
         if not got:
             md.append(f"| {label} | {critics} | | not run in this world | | | | {paper} |")
-            readme.append(f"| {label} | {critics} | not run in this world | | {', '.join(paper.split(', ')[:2])} |")
+            readme.append(f"| {label} | {critics} | not run in this world | | {paper_sr_ct(paper)} |")
             continue
         over = lambda k: np.array([x[k][0] for x in got if x[k]])     # noqa: E731  (each seed's mean)
         sr, ct = np.array([x["success_rate"] for x in got]), over("completion_time_s")
@@ -139,7 +144,7 @@ def table1(runs, ts_row):
         md.append(f"| {label} | {critics} | {seeds} | {ci(sr)} | {ct_cell} | {fx} | "
                   f"{over('cumulative_reward').mean():.1f} | {paper} |")
         so_far = f" ({len(got)} seed{'s' * (len(got) > 1)} so far)" if len(got) < 3 and name != "two-step" else ""
-        readme.append(f"| {label} | {critics} | {ci(sr)}{so_far} | {ct_cell} | {', '.join(paper.split(', ')[:2])} |")
+        readme.append(f"| {label} | {critics} | {ci(sr)}{so_far} | {ct_cell} | {paper_sr_ct(paper)} |")
     note = ("Critics: privileged (ours) also read X - X_g; multimodal (ours) read what the actor reads, as the paper's "
             "do, and the time, the curriculum's E_r and Ex_r, with LayerNorms (README difference 13). "
             f"Every learned row trained {budget} episodes (`--train-episodes {budget} --stop-held 0`), as the paper's, "

@@ -230,14 +230,15 @@ def context_rows(job, log=None):
     return rows
 
 
-def evaluate_jobs(jobs_list, jobs):
-    """context_rows of each job, in `jobs` processes (spawned: one torch thread each)."""
+def evaluate_jobs(jobs_list, jobs, fn=None):
+    """fn (default: context_rows) of each job, in `jobs` processes (spawned: one torch thread each)."""
+    fn = fn or context_rows
     if jobs == 1:
-        return [context_rows(j) for j in jobs_list]
+        return [fn(j) for j in jobs_list]
     import concurrent.futures as cf
     import multiprocessing as mp
     with cf.ProcessPoolExecutor(jobs, mp_context=mp.get_context("spawn")) as ex:
-        return list(ex.map(context_rows, jobs_list))
+        return list(ex.map(fn, jobs_list))
 
 
 def view_of(cfg):

@@ -208,18 +208,11 @@ def scene_table(patterns=SCENE_RUNS, scenes=SCENES, episodes=SCENE_EPISODES, job
     """docs/families.md's block `scenes`: for each task, view and family, over the runs' seeds, the mean SR over
     the family's held-out scenes, the share of scenes where the policy fails more often than it succeeds (SR below
     0.5), and the mean of its worst decile of scenes; each seed's worst decile in brackets."""
-    import concurrent.futures as cf
-    import multiprocessing as mp
     runs = [r for r in (load_run(d) for d in match_runs(patterns)) if r["eval"] and view_of(r["cfg"])]
     todo = [(r["dir"], f, scenes, episodes) for r in runs for f in sim.FAMILIES]
     log(f"  {len(runs)} runs x {len(sim.FAMILIES)} families x {scenes} scenes x {episodes} episodes in {jobs} "
         "processes (cached ones are read back)")
-    if jobs == 1:
-        got = [scene_rates(j) for j in todo]
-    else:
-        with cf.ProcessPoolExecutor(jobs, mp_context=mp.get_context("spawn")) as ex:
-            got = list(ex.map(scene_rates, todo))
-    by = {}
+    got, by = evaluate_jobs(todo, jobs, scene_rates), {}
     for (d, family, _, _), rates in zip(todo, got):
         r = next(r for r in runs if r["dir"] == d)
         by.setdefault((r["cfg"]["task"], view_of(r["cfg"])), {}).setdefault(family, []).append(np.array(rates))
