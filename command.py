@@ -100,9 +100,18 @@ def parse_args(config_cls, argv, description):
             raise ArgError(f"--resume {run_dir!r}: the run is finished; extend it with --train-episodes N (and "
                            f"--stop-held 0 to train past the point where it stopped as learned)")
     else:
-        cfg = config_cls(**given)
+        cfg = config_cls(**with_presets(config_cls, given))
     check(cfg)
     return cfg
+
+
+def with_presets(config_cls, given):
+    """The flags given, with those of each preset flag given (Config.PRESETS: --robust) that the command line does
+    not set itself."""
+    for flag, preset in getattr(config_cls, "PRESETS", {}).items():
+        if given.get(flag):
+            given = {**preset, **given}
+    return given
 
 
 def check(cfg):
@@ -119,8 +128,8 @@ def check(cfg):
              f"--eval must be {', '.join(baselines.NAMES)}, an existing policy.pt or a run's ckpt.pt, not "
              f"{cfg.eval!r}"),
             (cfg.eval == "two-step" and cfg.task != "peg", "--eval two-step is the peg-in-hole baseline (Table 1)"),
-            (not cfg.eval and contexts.held_out_family(cfg.context),
-             f"--context {cfg.context} draws held-out scenes: it is for --eval (training draws its own with "
+            (not cfg.eval and contexts.drawn_family(cfg.context),
+             f"--context {cfg.context} draws a scene each episode: it is for --eval (training draws its own with "
              "--randomize)"),
             (randomize, f"--randomize takes {randomize}, comma-separated, not "
              f"{cfg.randomize!r}" + (f" with --context {cfg.context}" if cfg.context != "train" else "")),
@@ -170,17 +179,21 @@ def check(cfg):
 
 
 def default_run_dir(cfg):
-    """runs/<task>-[vanilla-]<obs>-<curriculum>[-e<E_r mm>][-roi-<roi>][-ctx-<context>][-<critic>][-aug<s>]
+    """runs/<task>-[robust-][vanilla-]<obs>-<curriculum>[-e<E_r mm>][-roi-<roi>][-ctx-<context>][-<critic>][-aug<s>]
     [-rand-<families>][-imgnorm-<norm>][-<tag><value> of RUN_NAME_TAGS]-s<seed>: the flags of the baselines,
-    ablations and options are in its name, so that no run overwrites another's directory."""
-    default = type(cfg)                                 # the config's class: its defaults
-    name = f"{cfg.task}-{'vanilla-' if cfg.vanilla else ''}{cfg.obs}-{cfg.curriculum}"
+    ablations and options are in its name (beside --robust, those that differ from its), so that no run overwrites
+    another's directory."""
+    default = type(cfg)                                 # the config's class: its defaults (and --robust's)
+    robust = getattr(cfg, "robust", False)
+    if robust:
+        default = replace(default(), **default.PRESETS["robust"])
+    name = f"{cfg.task}-{'robust-' if robust else ''}{'vanilla-' if cfg.vanilla else ''}{cfg.obs}-{cfg.curriculum}"
     name += f"-e{cfg.error_mm:g}" if cfg.error_mm != default.error_mm else ""
     name += f"-roi-{cfg.roi}" if cfg.roi != "task" else ""
     name += f"-ctx-{cfg.context}" if cfg.context != default.context else ""
     name += f"-{cfg.critic}" if cfg.critic != default.critic else ""
     name += f"-aug{cfg.augment:g}" if cfg.augment else ""
-    name += f"-rand-{cfg.randomize.replace(',', '+')}" if cfg.randomize else ""
+    name += f"-rand-{cfg.randomize.replace(',', '+') or 'none'}" if cfg.randomize != default.randomize else ""
     name += f"-imgnorm-{cfg.image_norm}" if cfg.image_norm != default.image_norm else ""
     for field, tag in RUN_NAME_TAGS:                    # the scene and SAC's numbers, where not the defaults
         value = getattr(cfg, field)

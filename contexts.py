@@ -10,7 +10,7 @@ import numpy as np
 
 import tacrl_flat  # noqa: F401  (first: where another package shadows one of our modules, one line says so)
 import control as ctl
-from scene import (BRASS, BUMP_R_MAX, DARK, GEAR_CENTRES, GEAR_R_TIP, GREY, PART_BLUE, PEG_RADIUS, SHAFT_HEIGHT,
+from scene import (BRASS, BUMP_R_MAX, CHAMFER, DARK, GEAR_CENTRES, GEAR_R_TIP, GREY, PART_BLUE, PEG_RADIUS, SHAFT_HEIGHT,
                    TOOL_FRICTION, WORKCELL, Context)
 
 # Every context but 'train' is for testing. The four other places of the board on the table (the paper's
@@ -41,10 +41,11 @@ CONTEXTS = {
 # one scene from a seed. Seeds from FAMILY_TEST_SEED0 up are held out for testing ('light:test' draws one
 # anew each episode); training's randomization (sim.AssemblyEnv's `randomize`) draws seeds below it.
 # The ranges are ours (no source gives a workcell's), each meant as what one workcell sees over a day:
-FAMILIES = ("place", "light", "colour", "parts", "objects", "touch", "mixed")
-SEEN = FAMILIES[:5]                                   # the families of what the camera sees, which mixed draws together
+FAMILIES = ("place", "light", "colour", "parts", "objects", "touch", "reach", "calib", "mixed")
+# what mixed draws together: what the camera sees, what the tool can touch on the board, the sensors as mounted
+MIXED = ("place", "light", "colour", "parts", "objects", "reach", "calib")
 # each family's key to its seeds' draws: one added takes the next, so that no earlier family's scenes change
-FAMILY_KEYS = ("place", "light", "colour", "parts", "mixed", "objects", "touch")
+FAMILY_KEYS = ("place", "light", "colour", "parts", "mixed", "objects", "touch", "reach", "calib")
 FAMILY_TEST_SEED0 = 10_000
 PLACE_RING, PLACE_X, PLACE_Y, PLACE_YAW = (0.12, 0.32), (0.32, 0.70), (-0.32, 0.32), 0.5   # m from training's, m, rad
 LIGHT_ELEVATION, LIGHT_AMBIENT, LIGHT_DIFFUSE = (np.radians(35), np.radians(85)), (0.3, 0.8), (0.15, 0.5)
@@ -72,6 +73,26 @@ GEAR_REACH = BUMP_R_MAX - PEG_RADIUS + GEAR_R_TIP
 # static and sliding friction values); clearances from a press-near fit to a loose one (ours); a board set down
 # up to 1 degree off level (ours): the pair's coefficient (scene.World sets the board's against TOOL_FRICTION).
 TOUCH_FRICTION, TOUCH_CLEARANCE, TOUCH_TILT = (0.10, 0.70), (0.05e-3, 0.3e-3), np.radians(1.0)
+# What the tool can touch (ours: a workbench's; half extents, m): thin, long things lying on the board (a 1.5 mm wire,
+# a 4 mm cable tie 1.2 mm thick, a 5 mm cable; 4-10 cm long, along the board's x or y) and low ones (an M8 washer
+# 1.6 mm thick, 17 mm across; a 0.3 mm shim 12-25 mm across), 1-3 of them with their nearest side between the
+# hole's rim (or the held gear's tips at no error) and the tool's reach at 20 mm of error, where the part lands
+# on them at large errors; and 0-3 blocks of the objects family's larger sizes (2.5-4 cm across, 1.5-3 cm tall),
+# together within 1.5 cm beyond the tool's reach (on a board of 12 cm, in its corners).
+REACH_THIN = (((0.00075, 0.00075), (0.020, 0.050)),   # ((half height, half width), half length's range)
+              ((0.0006, 0.002), (0.020, 0.050)), ((0.0025, 0.0025), (0.020, 0.050)))
+REACH_LOW = ((0.0008, (0.0085, 0.0085)), (0.00015, (0.006, 0.0125)))     # (half height, half side's range)
+REACH_PER_SCENE, REACH_BLOCKS, REACH_BLOCK_SIDE, REACH_BLOCK_TALL = (1, 3), (0, 3), (0.025, 0.040), (0.015, 0.030)
+REACH_GAP = 0.001                                  # clear of the hole's chamfer (or the gear's tips at no error)
+# The sensors as mounted, not as calibrated (ours, as a bumped mount gives): the camera's mount off its hand-eye
+# calibration by up to 1 mm along and 0.5 deg about each of its axes (a careful calibration of a UR5's camera
+# leaves 0.28 mm and 0.25 deg: Sui et al., "On flange-based 3D hand-eye calibration", arXiv 2407.16041, 2024);
+# its focal length off by up to 1 % and its principal point by up to 4 px of the 800 px view (a lens's
+# calibration and its focus ring, ours); the wrist sensor turned on its mount by up to 1 deg about its axis and
+# 0.3 deg about the others (ours). The ROI (Eq. 11), the controller and every projection use the calibrated
+# model; only the rendered image and the measured wrench see these (scene.World).
+CALIB_SHIFT, CALIB_TURN, CALIB_FOCAL, CALIB_CENTRE = 0.001, np.radians(0.5), 0.01, 4.0
+CALIB_FT_TURN = (np.radians(0.3), np.radians(0.3), np.radians(1.0))
 
 
 def family_context(family, seed, task="peg"):
@@ -83,7 +104,7 @@ def family_context(family, seed, task="peg"):
     if family not in FAMILIES:
         raise ValueError(f"unknown family {family!r} ({', '.join(FAMILIES)})")
     rng = np.random.default_rng([seed, FAMILY_KEYS.index(family)])
-    kinds = SEEN if family == "mixed" else (family,)
+    kinds = MIXED if family == "mixed" else (family,)
     c = {}
     if "place" in kinds:
         c.update(_draw_place(rng))
@@ -103,6 +124,12 @@ def family_context(family, seed, task="peg"):
         a, t = rng.uniform(0, 2 * np.pi), rng.uniform(0, TOUCH_TILT)       # tilted by t about a horizontal axis
         c.update(friction=round(rng.uniform(*TOUCH_FRICTION), 3), clearance=round(rng.uniform(*TOUCH_CLEARANCE), 7),
                  tilt=_floats([t * np.cos(a), t * np.sin(a)], 5))
+    if "reach" in kinds:
+        c["objects"], c["on_board"] = _draw_reach(rng, task, c.get("objects", ())), True
+    if "calib" in kinds:
+        c["camera"] = _floats([*rng.uniform(-CALIB_SHIFT, CALIB_SHIFT, 3), *rng.uniform(-CALIB_TURN, CALIB_TURN, 3),
+                               rng.uniform(-CALIB_FOCAL, CALIB_FOCAL), *rng.uniform(-CALIB_CENTRE, CALIB_CENTRE, 2)], 6)
+        c["ft_mount"] = _floats(rng.uniform(np.negative(CALIB_FT_TURN), CALIB_FT_TURN), 6)
     return Context(**c)
 
 
@@ -195,12 +222,63 @@ def _draw_objects(rng, task, others=()):
     return tuple(out)
 
 
-def held_out_family(name):
-    """The family of --context FAMILY:test (a held-out scene each episode, the env's to draw), else None."""
+def reach_ring(task):
+    """The ring (m from the hole's or shaft's axis) where what the tool can touch lies: from the peg's chamfer (the
+    held gear's tips, the gear then sits down over the shaft) to where the part's rim reaches at 20 mm of error."""
+    if task == "peg":
+        return PEG_RADIUS + CHAMFER + REACH_GAP, BUMP_R_MAX
+    return GEAR_R_TIP + REACH_GAP, GEAR_REACH
+
+
+def _draw_reach(rng, task, others=()):
+    """REACH_PER_SCENE thin or low things within the tool's reach (reach_ring), then REACH_BLOCKS of the objects
+    family's largest blocks just beyond it, each whole on the board, off the mating gear and clear of `others`."""
+    out, (r0, r1) = list(others), reach_ring(task)
+    n = len(out) + rng.integers(REACH_PER_SCENE[0], REACH_PER_SCENE[1] + 1)
+    while len(out) < n:
+        if rng.random() < 0.5:                                             # thin and long, along x or y
+            (h, w), length = REACH_THIN[rng.integers(len(REACH_THIN))]
+            half = (rng.uniform(*length), w) if rng.random() < 0.5 else (w, rng.uniform(*length))
+        else:                                                              # low: a washer or a shim
+            h, side = REACH_LOW[rng.integers(len(REACH_LOW))]
+            half = (rng.uniform(*side),) * 2
+        he = (*half, h)
+        xy = rng.uniform(-BOARD_HALF + np.array(he[:2]), BOARD_HALF - np.array(he[:2]))
+        if not r0 <= box_gap((0.0, 0.0), xy, he) <= r1 or overlaps(xy, he, out, OBJECT_GAP):
+            continue
+        if task == "gear" and box_gap((GEAR_CENTRES, 0.0), xy, he) < GEAR_R_TIP + OBJECT_GAP:
+            continue
+        out.append((_floats(he, 5), _floats(xy, 4), PART_COLOURS[rng.integers(len(PART_COLOURS))]))
+    n = len(out) + rng.integers(REACH_BLOCKS[0], REACH_BLOCKS[1] + 1)
+    near = tool_reach(task, REACH_BLOCK_TALL[1]) + OBJECT_GAP
+    for _ in range(200 * (n - len(out))):                                  # (a board may have no room left)
+        if len(out) == n:
+            break
+        he = (*(rng.uniform(*REACH_BLOCK_SIDE, 2) / 2), rng.uniform(*REACH_BLOCK_TALL) / 2)
+        xy = rng.uniform(-BOARD_HALF + np.array(he[:2]), BOARD_HALF - np.array(he[:2]))
+        if not near <= box_gap((0.0, 0.0), xy, he) <= near + 0.015 or overlaps(xy, he, out, OBJECT_GAP):
+            continue
+        if task == "gear" and box_gap((GEAR_CENTRES, 0.0), xy, he) < GEAR_R_TIP + OBJECT_GAP:
+            continue
+        out.append((_floats(he, 4), _floats(xy, 4), _draw_colour(rng, OBJECT_VALUE)))
+    return tuple(out)
+
+
+def drawn_family(name):
+    """(family, first seed) of --context FAMILY:test (a held-out scene each episode, the env's to draw: seeds from
+    FAMILY_TEST_SEED0) or FAMILY:train (a scene of training's side each episode: the stop rule's validation), else
+    None."""
     if isinstance(name, Context):
         return None
     family, _, which = name.partition(":")
-    return family if which == "test" and family in FAMILIES else None
+    first = {"test": FAMILY_TEST_SEED0, "train": 0}.get(which)
+    return (family, first) if first is not None and family in FAMILIES else None
+
+
+def held_out_family(name):
+    """The family of --context FAMILY:test (a held-out scene each episode, the env's to draw), else None."""
+    drawn = drawn_family(name)
+    return drawn[0] if drawn and drawn[1] == FAMILY_TEST_SEED0 else None
 
 
 def context_of(name, task="peg"):
@@ -211,24 +289,30 @@ def context_of(name, task="peg"):
     if name in CONTEXTS:
         return CONTEXTS[name]
     family, _, seed = name.partition(":")
-    if family in FAMILIES and (seed.isdigit() or seed == "test"):   # test: the first held-out scene, as the env's
-        return family_context(family, int(seed) if seed.isdigit() else FAMILY_TEST_SEED0, task)
-    raise ValueError(f"unknown context {name!r} ({', '.join(CONTEXTS)}, or FAMILY:SEED or FAMILY:test with FAMILY "
+    if drawn_family(name):                          # the first scene the env draws from: held-out or training's side
+        return family_context(family, drawn_family(name)[1], task)
+    if family in FAMILIES and seed.isdigit():
+        return family_context(family, int(seed), task)
+    raise ValueError(f"unknown context {name!r} ({', '.join(CONTEXTS)}, or FAMILY:SEED, FAMILY:test or FAMILY:train with FAMILY "
                      f"one of {', '.join(FAMILIES)})")
 
 
 def context_key(name, task="peg"):
     """What --context `name` stands for, as text: a cache's key (a context or a family redefined is evaluated again)."""
-    if held_out_family(name):
+    if drawn_family(name):
         objects = (OBJECT_SIDE, OBJECT_TALL, OBJECT_RING, OBJECTS_PER_SCENE, OBJECT_GAP, OBJECT_VALUE, GEAR_REACH)
-        added = {"objects": objects, "mixed": objects,             # the older families' keys stay as they were
-                 "touch": (TOUCH_FRICTION, TOUCH_CLEARANCE, TOUCH_TILT, TOOL_FRICTION)}
+        reach = (REACH_THIN, REACH_LOW, REACH_PER_SCENE, REACH_BLOCKS, REACH_BLOCK_SIDE, REACH_BLOCK_TALL, REACH_GAP)
+        calib = (CALIB_SHIFT, CALIB_TURN, CALIB_FOCAL, CALIB_CENTRE, CALIB_FT_TURN)
+        added = {"objects": objects, "mixed": objects + ("mixed", MIXED) + reach + calib,   # (the older families'
+                 "touch": (TOUCH_FRICTION, TOUCH_CLEARANCE, TOUCH_TILT, TOOL_FRICTION),    # keys stay as they were)
+                 "reach": objects + reach, "calib": calib}
         return repr((name, task, FAMILY_TEST_SEED0, PLACE_RING, PLACE_X, PLACE_Y, PLACE_YAW, LIGHT_ELEVATION,
                      LIGHT_AMBIENT, LIGHT_DIFFUSE, KELVIN_RGB, TABLE_VALUE, BOARD_VALUE, MAX_SATURATION, LOOSE_PARTS,
-                     PART_COLOURS, PARTS_PER_SCENE, BOARD_HALF) + added.get(held_out_family(name), ()))
+                     PART_COLOURS, PARTS_PER_SCENE, BOARD_HALF) + added.get(drawn_family(name)[0], ()))
     c = context_of(name, task)
-    touch = (c.friction, c.clearance, c.tilt)
-    return repr(c) + (f" touch={touch}" if touch != (None, None, (0.0, 0.0)) else "")
+    touch, mount = (c.friction, c.clearance, c.tilt), (c.camera, c.ft_mount)
+    return (repr(c) + (f" touch={touch}" if touch != (None, None, (0.0, 0.0)) else "")
+            + (f" mount={mount}" if mount != ((), ()) else ""))
 
 
 class ContextNames:
@@ -241,4 +325,4 @@ class ContextNames:
 
     def __iter__(self):
         yield from CONTEXTS
-        yield from (f"{f}:SEED|test" for f in FAMILIES)
+        yield from (f"{f}:SEED|test|train" for f in FAMILIES)

@@ -169,7 +169,10 @@ class Context:
     board's top); light: getCameraImage's light arguments as (name, value) pairs, () for TinyRenderer's own.
     What the part touches (the touch family; None and (0, 0): the world's own): friction, the coefficient of the
     part sliding on the board, hole or shaft; clearance, diametral, m; tilt, the board's about its x and y, rad.
-    These three stay out of the repr, so that the other contexts' keys (context_key) stay as they were."""
+    The sensors as mounted (the calib family; () where as calibrated): camera, the camera's true mount against the
+    model's (dx, dy, dz m and rx, ry, rz rad in the camera's axes, the focal length's relative error, the principal
+    point's offset du, dv in px of the 800 px view); ft_mount, the wrist sensor's turn on its mount (rotation
+    vector, rad). These five stay out of the repr, so that the other contexts' keys (context_key) stay as they were."""
     board_xy: tuple = (0.50, 0.0)
     board_yaw: float = 0.0
     table_rgba: tuple = WOOD
@@ -180,6 +183,8 @@ class Context:
     friction: float = field(default=None, repr=False)
     clearance: float = field(default=None, repr=False)
     tilt: tuple = field(default=(0.0, 0.0), repr=False)
+    camera: tuple = field(default=(), repr=False)
+    ft_mount: tuple = field(default=(), repr=False)
 
 
 # ---------------------------------------------------------------- geometry helpers
@@ -292,6 +297,8 @@ class World:
     resetBase... (contact caches, solver warm starts: bullet3 issues 2442, 4387), so an episode run after
     others would differ from the same episode in a fresh world; after a rebuild it does not."""
 
+    ft_turn = None          # the wrist sensor's turn on its mount (3, 3), where the context has one (_build)
+
     def __init__(self, task="peg", clearance=1e-4, gui=False, ft_noise=True, image_noise=True, context=None):
         self.task, self.gui, self.base_clearance = task, gui, clearance
         self.context = context or Context()
@@ -355,6 +362,7 @@ class World:
         self.cam_rel = (x0[1].T @ (np.array(s[4]) - x0[0]), x0[1].T @ matrix_from_quat(s[5]))
         self.f_bias = np.zeros(6)
         self.goal_yaw = 0.0
+        self.ft_turn = ctl.rotvec_to_matrix(np.array(ctx.ft_mount)).T if ctx.ft_mount else None
 
     # -- scene construction -------------------------------------------------------------
     def _compound(self, parts, geom=p.GEOM_BOX):
@@ -484,6 +492,8 @@ class World:
         noise and drifting bias (in its own frame), moved to the tool tip, tool frame. The controller
         and the policy both see this reading."""
         w = -(raw - self.f_bias)
+        if self.ft_turn is not None:            # a sensor turned on its mount reads the wrench in its own axes
+            w = np.concatenate([self.ft_turn @ w[:3], self.ft_turn @ w[3:]])
         if self.ft_noise:
             self.f_drift += self.noise_rng.standard_normal(6) * FT_DRIFT * np.sqrt(1.0 / CONTROL_HZ)
             w = w + self.f_drift + self.noise_rng.standard_normal(6) * FT_NOISE
@@ -543,13 +553,19 @@ class World:
     def render_roi(self, roi, size=IMG):
         """Gray image (size, size) uint8 of the window roi = (u0, v0, u1, v1) of the full 800 x 800
         view, rendered directly (an off-centre frustum) rather than rendered large and cropped: the
-        cost of TinyRenderer grows with the pixel count."""
+        cost of TinyRenderer grows with the pixel count. The camera as mounted (the context's `camera`)
+        renders it: roi is in the pixels of the true camera's image."""
         u0, v0, u1, v1 = roi
         h = CAM_NEAR * np.tan(np.radians(CAM_FOV / 2))
         left, right = (2 * u0 / CAM_FULL - 1) * h, (2 * u1 / CAM_FULL - 1) * h
         top, bottom = (1 - 2 * v0 / CAM_FULL) * h, (1 - 2 * v1 / CAM_FULL) * h
+        if self.context.camera:            # intrinsics as mounted: focal length (1 + df) f, principal point + (du, dv)
+            df, du, dv = self.context.camera[6:]
+            s = h / (CAM_FULL / 2) / (1 + df)                  # m at the near plane per px
+            left, right = (u0 - CAM_FULL / 2 - du) * s, (u1 - CAM_FULL / 2 - du) * s
+            top, bottom = (CAM_FULL / 2 + dv - v0) * s, (CAM_FULL / 2 + dv - v1) * s
         proj = self.bc.computeProjectionMatrix(left, right, bottom, top, CAM_NEAR, CAM_FAR)
-        view = self.camera_matrices()
+        view = self.camera_matrices(self.mounted_camera() if self.context.camera else None)
         img = self.bc.getCameraImage(size, size, view.T.flatten().tolist(), proj, renderer=p.ER_TINY_RENDERER,
                                      flags=p.ER_NO_SEGMENTATION_MASK, **dict(self.context.light))[2]
         rgb = np.asarray(img, np.uint8).reshape(size, size, 4)[:, :, :3].astype(np.float32)
@@ -558,6 +574,13 @@ class World:
             gray = gray + np.sqrt(gray / E_PER_DN) * self.noise_rng.standard_normal(gray.shape).astype(np.float32)
             return np.clip(np.rint(gray), 0, 255).astype(np.uint8)
         return gray.astype(np.uint8)
+
+    def mounted_camera(self):
+        """The camera's true pose (eye, R) in world: the link's, the model's, moved by the context's mount error."""
+        s = self.bc.getLinkState(self.robot, self.cam_link, computeForwardKinematics=True)
+        eye, R = np.array(s[4]), matrix_from_quat(s[5])
+        d = np.array(self.context.camera[:6])
+        return eye + R @ d[:3], R @ ctl.rotvec_to_matrix(d[3:])
 
     def render_external(self):
         """An external RGB view (VIDEO_H, VIDEO_W, 3) uint8 of the task, for videos and rgb_array renders."""

@@ -24,7 +24,7 @@ import numpy as np
 
 import tacrl_flat  # noqa: F401  (first: where another package shadows one of our modules, one line says so)
 import control as ctl
-from contexts import FAMILIES, FAMILY_TEST_SEED0, context_of, family_context, held_out_family
+from contexts import FAMILIES, FAMILY_TEST_SEED0, context_of, drawn_family, family_context
 from scene import (APPROACH, CAM_FULL, CLEAR, CONTROL_HZ, CONTROL_PER_POLICY, FT_RANGE, IMG, POLICY_HZ, R_DOWN,
                    World, full_projection, project, task_features, to_world)
 
@@ -184,7 +184,8 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
     """Residual-RL assembly env (Algorithm 1's 'interact with environment').
 
     task: 'peg' or 'gear'; context: a name in contexts.CONTEXTS, FAMILY:SEED (one scene of a family,
-    contexts.FAMILIES), FAMILY:test (a held-out scene of the family drawn each episode) or a scene.Context itself;
+    contexts.FAMILIES), FAMILY:test (a held-out scene of the family drawn each episode), FAMILY:train (one of
+    training's side each episode) or a scene.Context itself;
     randomize: families
     whose training scenes (seeds below contexts.FAMILY_TEST_SEED0) each episode draws from, in place of the
     context; e_r: guidance error range E_r (m, x y z; the rotation error about z scales with it, E_ROT_FINAL at
@@ -318,12 +319,11 @@ class AssemblyEnv(gymnasium.Env if gymnasium else object):
         return self._obs(), self._info(x, False)
 
     def _episode_context(self):
-        """This episode's scene: the context's, a held-out scene of its family (FAMILY:test), or a training scene
-        of the randomized families."""
-        family = held_out_family(self.context)
-        if family:
-            seed = FAMILY_TEST_SEED0 + int(self.scene_rng.integers(FAMILY_TEST_SEED0))
-            return family_context(family, seed, self.task)
+        """This episode's scene: the context's, a held-out scene of its family (FAMILY:test) or one of training's
+        side (FAMILY:train), or a training scene of the randomized families."""
+        drawn = drawn_family(self.context)
+        if drawn:
+            return family_context(drawn[0], drawn[1] + int(self.scene_rng.integers(FAMILY_TEST_SEED0)), self.task)
         if self.randomize:
             family = self.randomize[self.scene_rng.integers(len(self.randomize))]
             return family_context(family, int(self.scene_rng.integers(FAMILY_TEST_SEED0)), self.task)

@@ -16,7 +16,7 @@ holds is rundir.py's; several seeds and the paper's experiments at once: tools/s
 import os
 import signal
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import ClassVar
 
 if __name__ == "__main__":     # Ctrl-C while torch and pybullet load: one line and exit 130, not a traceback
@@ -55,8 +55,8 @@ class Config:
     error_mm: float = opt(20.0, "error range E_r in mm (Eq. 13-15): evaluated, or the curriculum's final one",
                           bounds=(0.0, 30.0))
     context: str = opt("train", f"board location and background (Sec. 5.1.4: {', '.join(contexts.CONTEXTS)}), or "
-                                f"FAMILY:SEED, one scene of a family ({', '.join(contexts.FAMILIES)}), or "
-                                "FAMILY:test, a held-out one each episode",
+                                f"FAMILY:SEED, one scene of a family ({', '.join(contexts.FAMILIES)}), "
+                                "FAMILY:test, a held-out one each episode, or FAMILY:train, one of training's side",
                        contexts.ContextNames())
     roi: str = opt("task", "image window: task (Eq. 11's task attention) or a window of Fig. 11",
                    ("task", *sim.ROI_PRESETS))
@@ -65,7 +65,8 @@ class Config:
     # the paper's protocol (training only)
     train_episodes: int = train_opt(300, "max-episodes of Algorithm 1: the most a run trains", bounds=(1, None))
     stop_held: int = train_opt(30, "stop when learned: after this many episodes at the final range, every 10 the "
-                                   "greedy policy tries 20 there; 19 wins stop the run (0: never)",
+                                   "greedy policy tries 20 there; 19 wins stop the run (0: never); with --randomize, "
+                                   "every 30, and each family's training side must hold too (9 of 10 each)",
                                bounds=(0, None))
     obs: str = train_opt("ts-ptv", "observations (Fig. 9); v: the visual baseline; ts-ptk: keypoint RL (the hole "
                                    "found in the image by a detector, with the pose and wrench histories; peg)",
@@ -88,6 +89,9 @@ class Config:
                              open_bounds=True)
     target_entropy: float = train_opt(-6.0, "SAC's entropy target (the usual -|A|)")
     # ours, beyond the paper
+    robust: bool = train_opt(False, "the robust option: trains among every family's training scenes (--randomize "
+                                    "all but place, which mixed draws), with --image-norm image and --tilt-deg 1, "
+                                    "up to 600 episodes, and stops when it holds in each (a flag given beside it wins)")
     augment: float = train_opt(0.0, "image jitter s: brightness, contrast x U(1-s, 1+s) (README difference 17)",
                                bounds=(0, 1))
     randomize: str = train_opt("", "draw each episode's scene from these families' training scenes, comma-separated "
@@ -123,10 +127,13 @@ class Config:
                                                          "vanilla", "updates", "warmup"),
         "SAC (Sec. 4.3.2; what the paper leaves open: README difference 10)": ("critic", "batch", "buffer", "lr",
                                                                                 "gamma", "target_entropy"),
-        "ours, off by default (README difference 17)": ("augment", "randomize", "image_norm", "tilt_deg"),
+        "ours, off by default (README difference 17)": ("robust", "augment", "randomize", "image_norm", "tilt_deg"),
         "evaluation (Tables 1-2)": ("eval", "episodes", "eval_levels", "json", "video"),
         "files and the machine": ("resume", "run_dir", "track", "device", "threads", "gui"),
     }
+    # what --robust sets, where the command line does not (command.parse_args)
+    PRESETS: ClassVar[dict] = {"robust": {"randomize": ",".join(f for f in contexts.FAMILIES if f != "place"),
+                                          "image_norm": "image", "tilt_deg": 1.0, "train_episodes": 600}}
 
     @property
     def families(self):
@@ -148,6 +155,7 @@ POSE_SCALE = np.array([sim.E_R_FINAL] * 3 + [sim.E_ROT_FINAL] * 3)   # m, rad: t
 STATE_DIM = 7                                                        # what privileged critics read (critic_state)
 EXTRA_DIM = 3                                                        # multimodal critics' extras (critic_extra)
 VAL_SEED, VAL_EPISODES, VAL_WINS, VAL_EVERY = 2000, 20, 19, 10   # stop when learned: 19 of 20
+FAMILY_EPISODES, FAMILY_WINS, FAMILY_EVERY = 10, 9, 30               # ... and with --randomize, 9 of 10 in each family
 
 
 # ---------------------------------------------------------------- Algorithm 1
@@ -186,12 +194,13 @@ def train(cfg, log=lambda msg: print(msg, flush=True)):
                     losses.append(sac.update(buf.sample(cfg.batch, rng, cfg.augment)))
                 run.lap("update")
                 curr.update(bool(episode["term"][-1]))                      # line 11: generate the curriculum, Eq. 16
-                learned = stop.learned(env.e_r >= curr.final - 1e-9, lambda: validate(cfg, sac, curr, worker), log, ep)
+                learned = stop.learned(env.e_r >= curr.final - 1e-9, lambda: validate(cfg, sac, curr, worker),
+                                       lambda: validate_families(cfg, sac, curr, worker), log, ep)
                 run.save(episode, losses, sac.helper.threads, sr15=curr.success_rate, e_r_mm=env.e_r * 1000,
                          ex_r_mm=env.ex_r * 1000, delta=curr.delta)         # a kill loses at most the episode in flight
                 if learned:
                     break
-            return finish(cfg, sac, curr, run.seconds(), log, worker)
+            return finish(cfg, sac, curr, run.seconds(), log, worker, stop.history)
         except KeyboardInterrupt:
             raise KeyboardInterrupt(f"every finished episode is saved; continue with --resume {cfg.run_dir}")
         finally:
@@ -276,38 +285,61 @@ class StopRule:
     """Stop when learned (the paper trains max-episodes: README difference 16): from `stop_held` episodes in a
     row at the final range on, every VAL_EVERY episodes the greedy policy tries VAL_EPISODES held-out
     episodes there; VAL_WINS wins end the run. (One pass: a second in a row, as issue 49 measured, made the
-    quickstart's seeds train 10-30 episodes longer for no held-out success: docs/HISTORY.md.)"""
+    quickstart's seeds train 10-30 episodes longer for no held-out success: docs/HISTORY.md.) A run that trains
+    among families (--randomize) is validated every FAMILY_EVERY episodes, and where training's scene passes, in
+    FAMILY_EPISODES scenes of each family's training side too: FAMILY_WINS in each end it. `history` keeps every
+    validation (eval.json's, the episodes each seed took to hold)."""
 
     def __init__(self, cfg):
         self.stop_held, self.final_mm, self.episodes, self.held = cfg.stop_held, cfg.error_mm, cfg.train_episodes, 0
+        self.families = cfg.families
         self.stopped = False                         # passed: what is left is the evaluation (kept in ckpt.pt)
+        self.history = []                            # [{'episode': n, 'train': wins, family: wins, ...}]
 
-    def learned(self, at_final, validate, log, ep):
+    def learned(self, at_final, validate, validate_families, log, ep):
         self.held = self.held + 1 if at_final else 0                  # episodes in a row at the final range
-        if not (self.stop_held and self.held >= self.stop_held and (self.held - self.stop_held) % VAL_EVERY == 0):
+        every = FAMILY_EVERY if self.families else VAL_EVERY
+        if not (self.stop_held and self.held >= self.stop_held and (self.held - self.stop_held) % every == 0):
             return False
-        wins = validate()
-        log(f"validation at episode {ep + 1}: the greedy policy inserted {wins} of {VAL_EPISODES} at "
+        wins = {"episode": ep + 1, "train": validate()}
+        log(f"validation at episode {ep + 1}: the greedy policy inserted {wins['train']} of {VAL_EPISODES} at "
             f"{self.final_mm:g} mm")
-        if wins >= VAL_WINS:
+        if wins["train"] >= VAL_WINS and self.families:
+            wins.update(validate_families())
+            log(f"  in {FAMILY_EPISODES} scenes of each family's training side: "
+                + ", ".join(f"{f} {wins[f]}" for f in self.families))
+        self.history.append(wins)
+        self.stopped = wins["train"] >= VAL_WINS and all(wins.get(f, 0) >= FAMILY_WINS for f in self.families)
+        if self.stopped:
             log(f"stopped as learned at episode {ep + 1} (--stop-held 0 trains all {self.episodes})")
-        self.stopped = wins >= VAL_WINS
         return self.stopped
 
     def state_dict(self):
-        return {"held": self.held, "stopped": self.stopped}
+        return {"held": self.held, "stopped": self.stopped, "history": self.history}
 
     def load_state_dict(self, d):                # (a checkpoint of before issue 49's change also holds 'passes')
-        self.held, self.stopped = int(d["held"]), bool(d.get("stopped", False))
+        self.held, self.stopped, self.history = int(d["held"]), bool(d.get("stopped", False)), d.get("history", [])
 
 
 def validate(cfg, sac, curr, worker=None):
-    """Greedy successes at the final range, in a new env, on seeds apart from training's and evaluation's (half of
-    them played by worker, an evaluate.Worker, where there is one)."""
+    """Greedy successes at the final range in training's scene, in a new env, on seeds apart from training's and
+    evaluation's (half of them played by worker, an evaluate.Worker, where there is one)."""
     pi = evaluate.TrainedPolicy(evaluate.policy_file(sac, {"obs": cfg.obs}), sac.device)   # sac.act's greedy action
-    with make_env(cfg, e_r=curr.final, ex_r=curr.ranges()[1]) as env:
+    with make_env(replace(cfg, randomize=""), e_r=curr.final, ex_r=curr.ranges()[1]) as env:
         row = evaluate.evaluate(env, pi, VAL_EPISODES, VAL_SEED + cfg.seed, log=lambda *_: None, worker=worker)
     return round(row["success_rate"] * VAL_EPISODES)
+
+
+def validate_families(cfg, sac, curr, worker=None):
+    """{family: greedy successes} at the final range in FAMILY_EPISODES scenes of each randomized family's training
+    side (FAMILY:train, never its held-out seeds), on validation's seeds."""
+    pi, out = evaluate.TrainedPolicy(evaluate.policy_file(sac, {"obs": cfg.obs}), sac.device), {}
+    for family in cfg.families:
+        with make_env(replace(cfg, context=f"{family}:train", randomize=""), e_r=curr.final,
+                      ex_r=curr.ranges()[1]) as env:
+            row = evaluate.evaluate(env, pi, FAMILY_EPISODES, VAL_SEED + cfg.seed, log=lambda *_: None, worker=worker)
+        out[family] = round(row["success_rate"] * FAMILY_EPISODES)
+    return out
 
 
 def policy_meta(cfg, curr):
@@ -334,8 +366,9 @@ def load_policy(path, device="cpu"):
     return evaluate.load_policy(path, device, from_checkpoint=checkpoint_policy)
 
 
-def finish(cfg, sac, curr, seconds, log, worker=None):
-    """policy.pt (with what evaluation must know of training), curves.png and eval.json: held-out seeds."""
+def finish(cfg, sac, curr, seconds, log, worker=None, stop_history=()):
+    """policy.pt (with what evaluation must know of training), curves.png and eval.json: held-out seeds, and the
+    stop rule's validations."""
     policy_path = os.path.join(cfg.run_dir, "policy.pt")
     evaluate.save_policy(policy_path, sac, policy_meta(cfg, curr))
     rundir.plot_curves(cfg.run_dir, f"{cfg.task}, {cfg.obs}, {cfg.curriculum}")
@@ -347,7 +380,8 @@ def finish(cfg, sac, curr, seconds, log, worker=None):
     trained = len(rundir.read_metrics(cfg.run_dir)["episode"])     # fewer than --train-episodes if stopped as learned
     result = {"task": cfg.task, "obs": cfg.obs, "curriculum": cfg.curriculum, "context": cfg.context, "roi": cfg.roi,
               "seed": cfg.seed, "eval_seed": evaluate.EVAL_SEED + cfg.seed, "train_episodes": trained,
-              "world": sim.WORLD, "train_minutes": round(seconds / 60, 1), "rows": rows}
+              "world": sim.WORLD, "train_minutes": round(seconds / 60, 1), "rows": rows,
+              "validation": list(stop_history)}
     rundir.write_json(os.path.join(cfg.run_dir, "eval.json"), result)     # whole or not at all: the run's end
     log(f"wrote {cfg.run_dir}/policy.pt, metrics.csv, curves.png, eval.json")
     return result

@@ -417,11 +417,11 @@ def test_the_stop_rule_validates_every_few_episodes_at_the_final_range_and_stops
     monkeypatch.setattr(tacrl, "VAL_WINS", 2)
     rule, lines, at = tacrl.StopRule(tacrl.Config(stop_held=3, train_episodes=12)), [], []
     for ep in range(12):
-        if rule.learned(True, lambda: at.append(ep + 1) or wins[len(at) - 1], lines.append, ep):
+        if rule.learned(True, lambda: at.append(ep + 1) or wins[len(at) - 1], dict, lines.append, ep):
             break
     assert at == [3, 5, 7, 9, 11][:len(wins)] and ep + 1 == (stops or 12)
     assert (lines[-1] == f"stopped as learned at episode {stops} (--stop-held 0 trains all 12)") == bool(stops)
-    rule.learned(False, lambda: pytest.fail("validated off the final range"), lines.append, 12)   # the count restarts
+    rule.learned(False, lambda: pytest.fail("validated off the final range"), dict, lines.append, 12)   # restarts
     assert rule.held == 0
     rule.load_state_dict({"held": 4, "passes": 1})      # a checkpoint from when two passes in a row were needed
     assert rule.held == 4
@@ -560,3 +560,51 @@ def test_a_saved_policy_keeps_its_encoders_layout(tmp_path, state_dim, image_nor
     old = {**rundir.load_file(str(tmp_path / "p.pt")), "image_encoder": "spatial", "image_feat": 6}
     with pytest.raises(ValueError, match="critics study"):                  # a study's encoder: its tag reads it
         evaluate.TrainedPolicy(old)
+
+
+@pytest.mark.parametrize("train, families, stops", [([2, 2, 2], [{"reach": 1, "calib": 2}] * 3, None),
+                                                    ([1, 2, 2], [{"reach": 2, "calib": 1}, {"reach": 2, "calib": 2}], 9),
+                                                    ([2], [{"reach": 2, "calib": 2}], 3)])
+def test_with_families_the_stop_rule_also_asks_each_familys_training_side(train, families, stops, monkeypatch):
+    # --randomize: validated every FAMILY_EVERY (3 here) episodes; the families only where training's scene passes
+    # (VAL_WINS 2), and every family must hold (FAMILY_WINS 2) for the run to stop
+    monkeypatch.setattr(tacrl, "FAMILY_EVERY", 3)
+    monkeypatch.setattr(tacrl, "VAL_WINS", 2)
+    monkeypatch.setattr(tacrl, "FAMILY_WINS", 2)
+    rule = tacrl.StopRule(tacrl.Config(stop_held=3, train_episodes=10, randomize="reach,calib"))
+    at, asked = [], []
+    for ep in range(10):
+        if rule.learned(True, lambda: at.append(ep + 1) or train[len(at) - 1],
+                        lambda: asked.append(ep + 1) or families[len(asked) - 1], lambda *_: None, ep):
+            break
+    assert at == [3, 6, 9][:len(at)] and ep + 1 == (stops or 10)
+    assert asked == [a for a, w in zip(at, train) if w >= 2]             # the families where training's scene passed
+    assert [h["episode"] for h in rule.history] == at and rule.stopped == bool(stops)
+    restored = tacrl.StopRule(tacrl.Config(randomize="reach,calib"))
+    restored.load_state_dict(rule.state_dict())
+    assert restored.history == rule.history
+
+
+def test_a_robust_run_validates_in_each_family_and_keeps_what_it_found(tmp_path, monkeypatch):
+    # --robust with no curriculum, so that it is validated after episode 2; 0 wins pass everywhere, and eval.json
+    # holds the validation: training's scene and each family's training side, one episode each
+    monkeypatch.setattr(sim, "MAX_STEPS", 4)
+    for name, value in [("VAL_EPISODES", 1), ("FAMILY_EPISODES", 1), ("FAMILY_EVERY", 2), ("VAL_WINS", 0),
+                        ("FAMILY_WINS", 0)]:
+        monkeypatch.setattr(tacrl, name, value)
+    cfg = tacrl.parse_args(TINY + ["--robust", "--randomize", "reach,calib", "--curriculum", "none", "--stop-held",
+                                   "2", "--run-dir", str(tmp_path / "run")])
+    assert (cfg.image_norm, cfg.tilt_deg, cfg.randomize) == ("image", 1.0, "reach,calib")   # a flag given wins
+    result = tacrl.train(cfg, log=lambda *_: None)
+    assert result["train_episodes"] == 2 and result["validation"] == [{"episode": 2, "train": 0, "reach": 0,
+                                                                       "calib": 0}]
+
+
+def test_robust_is_one_flag_for_the_option_and_names_its_run():
+    cfg = tacrl.parse_args(["--robust", "--seed", "2"])
+    assert cfg.families == tuple(f for f in contexts.FAMILIES if f != "place") and cfg.image_norm == "image"
+    assert (cfg.tilt_deg, cfg.train_episodes, cfg.stop_held) == (1.0, 600, 30)
+    assert os.path.basename(cfg.run_dir) == "peg-robust-ts-ptv-adaptive-s2"
+    other = tacrl.parse_args(["--robust", "--tilt-deg", "0", "--randomize", "touch"])
+    assert os.path.basename(other.run_dir) == "peg-robust-ts-ptv-adaptive-rand-touch-tilt0-s0"
+    assert tacrl.parse_args([]).randomize == ""

@@ -69,6 +69,10 @@ EXPERIMENTS = {
     # peg's rows first, then the gear's)
     "option": [["--task", t, *FLAGS(OPTION), *BUDGET(600)] for t in ("peg", "gear")],
     "option-loo": [["--task", t, *flags, *BUDGET(600)] for t in ("peg", "gear") for flags in leave_one_out().values()],
+    # issue 83: --robust, stopped when it holds in every family, and the quickstart's command beside it on the same
+    # machine at the same threads (its time's yardstick)
+    "robust-flag": [["--task", t, "--robust"] for t in ("peg", "gear")],
+    "quickstart": [["--task", t] for t in ("peg", "gear")],
 }
 SEEDS = (0, 1, 2)     # the seeds of a row of the report's tables: 3, as the task's bar asks where a table shows one
 PROJECT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -100,7 +104,7 @@ def plan(experiments, seeds, root, flags=()):
 
 def config_of(argv):
     """tacrl.py's flags -> the run's Config (ArgError for a mistake in them)."""
-    return tacrl.Config(**cli.parse(tacrl.Config, argv, ""))
+    return tacrl.Config(**command.with_presets(tacrl.Config, cli.parse(tacrl.Config, argv, "")))
 
 
 def run_name(cfg):
