@@ -210,3 +210,36 @@ def test_the_leave_one_out_has_a_table_of_its_own_named_by_the_part_left_out():
                    ["`--tilt-deg`", "1", "0.50"]]                                   # the option first, then as planned
     alone = scenes.family_table({("peg", no_light): by([0.25])}, episodes=20)          # a run of it, reported alone
     assert [r.split(" | ")[1] for r in alone if r.startswith("| peg")] == ["`light`"]
+
+
+def _robust_run(root, name, task, seed, minutes, episodes, validation=None, robust=True):
+    """A finished run dir as the archive keeps it: config.json, metrics.csv and eval.json."""
+    import json
+    d = root / name
+    d.mkdir(parents=True)
+    argv = ["--task", task, "--seed", str(seed)] + (["--robust"] if robust else [])
+    cfg = dataclasses.asdict(tacrl.parse_args(argv + ["--run-dir", str(d)]))
+    (d / "config.json").write_text(json.dumps(cfg))
+    (d / "metrics.csv").write_text("episode,return,success,sr15,e_r_mm,ex_r_mm,elapsed_s\n1,0,0,0,0,2,1\n")
+    row = {"error_mm": 20.0, "success_rate": 1.0, "episodes": 20}
+    (d / "eval.json").write_text(json.dumps({"train_episodes": episodes, "train_minutes": minutes, "rows": [row],
+                                             "world": 22, **({"validation": validation} if validation else {})}))
+
+
+def test_the_robust_runs_table_shows_where_each_seed_first_held_and_its_time_against_the_quickstarts(tmp_path):
+    import robust
+    fams = tacrl.parse_args(["--robust"]).families
+    fail = {"episode": 60, "train": 20, **{f: 10 for f in fams}, "calib": 7}
+    hold = {"episode": 90, "train": 19, **{f: 9 for f in fams}}
+    _robust_run(tmp_path / "robust-flag", "peg-s0", "peg", 0, 40.0, 90, [{"episode": 30, "train": 15}, fail, hold])
+    _robust_run(tmp_path / "robust-flag", "peg-s1", "peg", 1, 60.0, 600, [fail])
+    for s, minutes in enumerate((10.0, 30.0, 20.0)):
+        _robust_run(tmp_path / "quickstart", f"peg-{s}", "peg", s, minutes, 150, robust=False)
+    (tmp_path / "robust-flag" / "bench-before.txt").write_text("ts-ptv critics privileged: median  49.4 updates/s\n")
+    md = robust.flag_table(f"{tmp_path}/robust-flag/*", f"{tmp_path}/quickstart/*")
+    rows = {r.split("|")[2].strip(): [c.strip() for c in r.split("|")[1:-1]] for r in md.splitlines()
+            if r.startswith("| peg |")}
+    assert rows["0"][2:5] == ["90", "yes", "90"] and "30: train 15/20" in rows["0"][5] and "60: calib 7/10" in rows["0"][5]
+    assert rows["1"][2:5] == ["600", "no", "-"]
+    ratio = next(r for r in md.splitlines() if r.startswith("| peg (2 and 3 seeds)"))
+    assert [c.strip() for c in ratio.split("|")[2:5]] == ["50.0", "20.0", "2.5"] and "49.4" in md

@@ -1,8 +1,8 @@
 """report.py: the paper's experiments, re-made from the archived runs in results/, written into the pages that show
 them: the README and docs/ are prose a person writes, with named blocks the report makes (pages.py), so that no
 number of results is typed. What each part makes: results.py (Tables 1-2, Figs. 9-12 and 16, SB3 beside ours),
-scenes.py (every named context, the families of scenes, the robust option), compare.py (a table of learning
-settings); runs.py reads the runs and keeps the archive.
+scenes.py (every named context, the families of scenes, the robust option), robust.py (--robust: the episodes and
+time it takes), compare.py (a table of learning settings); runs.py reads the runs and keeps the archive.
 
     python tools/report.py --archive "runs/table1/*" --to results/table1   # finished runs -> results/table1/<run>/
     python tools/report.py                       # results/{table1,contexts,gear-*} -> README.md, docs/*.md, fig-*.png
@@ -27,6 +27,7 @@ import cli  # noqa: E402
 import compare  # noqa: E402
 import pages  # noqa: E402
 import results  # noqa: E402
+import robust  # noqa: E402
 import scenes  # noqa: E402
 from cli import ArgError  # noqa: E402
 from runs import RESULTS_DIR, archive_runs  # noqa: E402
@@ -48,7 +49,7 @@ CODE_MAP = {   # the README's code map: each file of the core and what of the pa
     "rundir.py": "what a run directory holds: config, checkpoint, replay files, metrics, curves",
     "baselines.py": "the two-step baseline: visual servo, spiral search, insertion (Sec. 5.1.2)",
     "tacrl_flat.py": "the guard that names a module of ours another installed package shadows",
-    "tools/": "the report (`report.py`: `results.py`, `scenes.py`, `compare.py`, `runs.py`, `pages.py`), "
+    "tools/": "the report (`report.py`: `results.py`, `scenes.py`, `robust.py`, `compare.py`, `runs.py`, `pages.py`), "
               "`figures.py`, `sweep.py` (experiments, here or on Ray), studies (`critics.py`, `objects.py`, `touch.py`)",
 }
 
@@ -84,7 +85,7 @@ def check(out_dir, readme, log=print):
         if os.path.exists(cached):              # the two-step row, as the report keeps it with its world
             shutil.copy(cached, tmp)
         made = {**results.make(out_dir=tmp, log=quiet), **scenes.make(out_dir=tmp, log=quiet), "code-map": code_map(),
-                **scenes.scene_table(log=quiet)}
+                **scenes.scene_table(log=quiet), **robust.make()}
     differ = [f"{p}: {name}" for p in page_paths(out_dir, readme) for name in pages.stale(p, made)]
     if differ:
         raise cli.Failed(f"{'; '.join(differ)}: not what the report makes of {RESULTS_DIR}/ now (python "
@@ -136,7 +137,8 @@ def main(argv=None):
         write(scenes.make(a.runs or scenes.CONTEXT_RUNS, a.out, jobs=a.jobs, named=a.contexts), a.out, a.readme)
     else:
         cli.check_dir_writable(a.out, "--out")
-        write({**results.make(a.runs or results.REPORT_RUNS, a.out), "code-map": code_map()}, a.out, a.readme)
+        write({**results.make(a.runs or results.REPORT_RUNS, a.out), "code-map": code_map(), **robust.make()}, a.out,
+              a.readme)
 
 
 if __name__ == "__main__":

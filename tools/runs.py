@@ -10,7 +10,7 @@ import glob
 import json
 import os
 import shutil
-from dataclasses import asdict, fields
+from dataclasses import asdict, fields, replace
 
 import numpy as np
 import torch
@@ -116,17 +116,24 @@ def method_of(cfg):
         name = "ours"
     else:
         name = f"{cfg['obs']}, {cfg['curriculum']} to {cfg['error_mm']:g} mm, roi {cfg['roi']}"
-    default = tacrl.Config()
-    named = ("task", "seed", "context", "vanilla", "obs", "curriculum", "roi", "error_mm") + command.NOT_LEARNING
+    default = defaults_of(cfg)
+    named = ("task", "seed", "context", "vanilla", "obs", "curriculum", "roi", "error_mm", "robust") + \
+        command.NOT_LEARNING
     changed = [f"{k} {v}" for k, v in cfg.items()         # (a retired flag is in cfg only where not today's code)
                if k not in named and (not hasattr(default, k) or v != getattr(default, k))]
+    changed = (["robust"] if cfg.get("robust") else []) + changed
     return name + (f" ({', '.join(changed)})" if changed else "")
+
+
+def defaults_of(cfg):
+    """The Config a run's flags are told against: the defaults, or with --robust, those it sets."""
+    return replace(tacrl.Config(), **tacrl.Config.PRESETS["robust"]) if cfg.get("robust") else tacrl.Config()
 
 
 def command_of(cfg):
     """The training command that reproduces a run: the flags whose values differ from the defaults (with the
     critics study's flags, the command of its commit)."""
-    default, flags = tacrl.Config(), ["python tacrl.py"]
+    default, flags = defaults_of(cfg), ["python tacrl.py"]
     for k, v in cfg.items():
         if k in ("run_dir", "threads", "device", "resume", "track"):
             continue
@@ -249,6 +256,10 @@ def view_of(cfg):
 
 # the view of the robust option's runs, as `python tools/sweep.py option` makes them (sweep.OPTION, 600 episodes)
 OPTION_VIEW = view_of(asdict(sweep.config_of(sweep.FLAGS(sweep.OPTION))))
+
+
+# and of --robust's (`python tools/sweep.py robust-flag`)
+ROBUST_VIEW = view_of(asdict(sweep.config_of(["--robust"])))
 
 
 # and of its leave-one-out (`python tools/sweep.py option-loo`): each view -> the part of the option it leaves out

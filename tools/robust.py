@@ -1,0 +1,133 @@
+"""robust.py: what the robust option costs, and when it holds (issue 83; docs/robust.md). Two blocks:
+`robust-before`, when the option's archived runs (made before --robust, their families as then drawn) first held
+every family, from the evaluations kept beside them; and `robust-runs`, the --robust runs (`python tools/sweep.py
+robust-flag`) beside the quickstart's command on the same machine at the same threads (`python tools/sweep.py
+quickstart`): their episodes, their time against the bench figure, and each validation of the stop rule.
+"""
+import glob
+import os
+import re
+
+import numpy as np
+
+import tacrl
+from cli import ArgError
+from runs import RESULTS_DIR, load_run, match_runs, read_json
+
+HOLD = 0.9                  # the issue's bar: SR at 20 mm in training's scene and every held-out family
+MM = 20.0
+# the option's runs of issue 53, one lineage a (task, seed): first trained to 300 episodes or a stop (tilt/), then
+# copies resumed to 400-500 (ext*/) and 600 (ep600/); their policies left the archive, their evaluations stay
+BEFORE = ",".join(f"{RESULTS_DIR}/{e}/*" for e in ("tilt", "ext", "ext400", "ext500", "ep600"))
+OPTION_FAMILIES = ("place", "light", "colour", "parts", "objects", "touch", "mixed")   # as the option's runs drew them
+FLAG_RUNS, YARDSTICK = f"{RESULTS_DIR}/robust-flag/*", f"{RESULTS_DIR}/quickstart/*"
+BENCH = re.compile(r"ts-ptv critics privileged: median\s+([\d.]+) updates/s")
+
+
+def sr_at(rows, mm=MM):
+    return next(r["success_rate"] for r in rows if r["error_mm"] == mm)
+
+
+def archived_families(run):
+    """{family: SR at 20 mm} of a run as its archive holds them (eval-ctx-FAMILY-test.json: 20 held-out trials,
+    each family as drawn when it was evaluated), and 'train' from eval.json."""
+    out = {"train": sr_at(run["eval"]["rows"])}
+    for f in OPTION_FAMILIES:
+        path = os.path.join(run["dir"], f"eval-ctx-{f}-test.json")
+        if os.path.exists(path):
+            out[f] = sr_at(read_json(path)["rows"])
+    return out
+
+
+def before_rows(patterns=BEFORE):
+    """[(task, seed, episodes, {family: SR})] of the option's runs, a lineage's in the order it trained."""
+    out = []
+    for d in match_runs(patterns):
+        run = load_run(d)
+        if "mixed" in run["cfg"]["randomize"]:              # (tilt/ also holds the option without mixed)
+            out.append((run["cfg"]["task"], run["cfg"]["seed"], run["eval"]["train_episodes"], archived_families(run)))
+    return sorted(out, key=lambda r: r[:3])
+
+
+def before_table(rows):
+    """The block robust-before: a row a run, with the lowest SR over training's scene and the families and the
+    families below HOLD; then, a lineage a line, the episodes at which it first held them all."""
+    md = [f"Made by `python tools/report.py` from the archived runs of the robust option (`{BEFORE}`; world 22; "
+          f"each family as drawn then: mixed without reach and calib). SR at {MM:g} mm, 20 held-out trials a family. "
+          "Each (task, seed) is one lineage: a run trained to 300 episodes or its stop, then copies of it resumed to "
+          "more (`--resume RUN --train-episodes N --stop-held 0`).",
+          "", "| task | seed | episodes | train | lowest | below 0.9 |", "|---|---|---|---|---|---|"]
+    first = {}
+    for task, seed, episodes, sr in rows:
+        low = min(sr.values())
+        below = ", ".join(f"{f} {v:.2f}" for f, v in sr.items() if v < HOLD) or "-"
+        md.append(f"| {task} | {seed} | {episodes} | {sr['train']:.2f} | {low:.2f} | {below} |")
+        first.setdefault((task, seed), []).append((episodes, low >= HOLD))
+    said = []
+    for (task, seed), evs in sorted(first.items()):
+        at = next((i for i, (_, ok) in enumerate(evs) if ok), None)
+        said.append(f"{task} seed {seed}: " + (f"not by {evs[-1][0]}" if at is None else f"at {evs[at][0]}"
+                                                + (f" (not at {evs[at - 1][0]})" if at else "")))
+    return "\n".join(md + ["", "First held every family: " + "; ".join(said) + "."])
+
+
+def bench_of(path):
+    """bench/bench_sac.py's privileged ts-ptv figure (updates/s) in a saved console, or None."""
+    if not os.path.exists(path):
+        return None
+    m = BENCH.search(open(path).read())
+    return float(m.group(1)) if m else None
+
+
+def held(v, families):
+    """Whether a validation (eval.json's) held in training's scene and every family, as the stop rule asks."""
+    return v["train"] >= tacrl.VAL_WINS and all(v.get(f, -1) >= tacrl.FAMILY_WINS for f in families)
+
+
+def missed(v, families):
+    """What a validation that did not hold lacked: training's scene, or the families below the stop rule's bar."""
+    if v["train"] < tacrl.VAL_WINS:
+        return f"train {v['train']}/{tacrl.VAL_EPISODES}"
+    return ", ".join(f"{f} {v[f]}/{tacrl.FAMILY_EPISODES}" for f in families if v[f] < tacrl.FAMILY_WINS)
+
+
+def flag_table(robust=FLAG_RUNS, yardstick=YARDSTICK):
+    """The block robust-runs: each --robust run (episodes, minutes, the validations that did not hold, where it
+    stopped) beside the quickstart's runs of its task; the medians' ratio; the bench figure saved beside them."""
+    runs = [load_run(d) for d in match_runs(robust)]
+    runs = [r for r in runs if r["eval"]]
+    yard = [r for r in (load_run(d) for d in match_runs(yardstick)) if r["eval"]]
+    folder = os.path.dirname(robust)                       # (the pattern's folder: results/robust-flag)
+    benches = [b for b in (bench_of(p) for p in sorted(glob.glob(os.path.join(folder, "bench-*.txt")))) if b]
+    md = [f"Made by `python tools/report.py` from `{robust}` (`python tools/sweep.py robust-flag`) and `{yardstick}` "
+          f"(`python tools/sweep.py quickstart`): two runs at a time, `--threads 1` each, on the 2-core machine "
+          f"(`bench/bench_sac.py`, privileged ts-ptv: {', '.join(f'{b:g}' for b in benches) or '-'} updates/s, "
+          "before and after). Minutes: training and its evaluation.", "",
+          "| task | seed | episodes | stopped as learned | first held (episode) | validations that did not hold | minutes |",
+          "|---|---|---|---|---|---|---|"]
+    for r in sorted(runs, key=lambda r: (r["cfg"]["task"], r["cfg"]["seed"])):
+        fams = tuple(f for f in r["cfg"]["randomize"].split(",") if f)
+        val = r["eval"].get("validation", [])
+        first = next((v["episode"] for v in val if held(v, fams)), None)
+        lacked = "; ".join(f"{v['episode']}: {missed(v, fams)}" for v in val if not held(v, fams)) or "-"
+        episodes = r["eval"]["train_episodes"]
+        md.append(f"| {r['cfg']['task']} | {r['cfg']['seed']} | {episodes} | {'yes' if first == episodes else 'no'} | "
+                  f"{first or '-'} | {lacked} | {r['eval']['train_minutes']:.1f} |")
+    md += ["", "| task | --robust, median minutes | the quickstart's, median minutes | ratio |", "|---|---|---|---|"]
+    for task in sorted({r["cfg"]["task"] for r in runs}):
+        a = [r["eval"]["train_minutes"] for r in runs if r["cfg"]["task"] == task]
+        b = [r["eval"]["train_minutes"] for r in yard if r["cfg"]["task"] == task]
+        ratio = f"{np.median(a) / np.median(b):.1f}" if b else "-"
+        md.append(f"| {task} ({len(a)} and {len(b)} seeds) | {np.median(a):.1f} | "
+                  f"{f'{np.median(b):.1f}' if b else '-'} | {ratio} |")
+    return "\n".join(md)
+
+
+def make():
+    """{block: markdown} of docs/robust.md (robust-runs only once --robust runs are archived)."""
+    made = {"robust-before": before_table(before_rows())}
+    try:
+        made["robust-runs"] = flag_table()
+    except ArgError:                    # none archived yet
+        pass
+    return made
