@@ -124,10 +124,11 @@ def flag_table(robust=FLAG_RUNS, yardstick=YARDSTICK):
 
 
 def make():
-    """{block: markdown} of docs/robust.md (robust-runs only once --robust runs are archived)."""
-    made = {"robust-before": before_table(before_rows())}
-    try:
-        made["robust-runs"] = flag_table()
-    except ArgError:                    # none archived yet
-        pass
+    """{block: markdown} of docs/robust.md, each where its runs are archived (else the page's block stays as it is)."""
+    made = {}
+    for name, block in (("robust-before", lambda: before_table(before_rows())), ("robust-runs", flag_table)):
+        try:
+            made[name] = block()
+        except ArgError:                # no such run archived (yet, or here)
+            pass
     return made
