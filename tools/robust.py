@@ -96,13 +96,18 @@ def flag_table(robust=FLAG_RUNS, yardstick=YARDSTICK):
     stopped) beside the quickstart's runs of its task; the medians' ratio; the bench figure saved beside them."""
     runs = [load_run(d) for d in match_runs(robust)]
     runs = [r for r in runs if r["eval"]]
-    yard = [r for r in (load_run(d) for d in match_runs(yardstick)) if r["eval"]]
+    try:
+        yard = [r for r in (load_run(d) for d in match_runs(yardstick)) if r["eval"]]
+    except ArgError:                    # the yardstick not archived yet: its cells are dashes
+        yard = []
     folder = os.path.dirname(robust)                       # (the pattern's folder: results/robust-flag)
-    benches = [b for b in (bench_of(p) for p in sorted(glob.glob(os.path.join(folder, "bench-*.txt")))) if b]
+    benches = [(os.path.basename(p)[len("bench-"):-len(".txt")], bench_of(p))      # bench-before.txt, bench-after.txt
+               for p in sorted(glob.glob(os.path.join(folder, "bench-*.txt")), reverse=True)]
     md = [f"Made by `python tools/report.py` from `{robust}` (`python tools/sweep.py robust-flag`) and `{yardstick}` "
-          f"(`python tools/sweep.py quickstart`): two runs at a time, `--threads 1` each, on the 2-core machine "
-          f"(`bench/bench_sac.py`, privileged ts-ptv: {', '.join(f'{b:g}' for b in benches) or '-'} updates/s, "
-          "before and after). Minutes: training and its evaluation.", "",
+          f"(`python tools/sweep.py quickstart`): each run `--threads 1` beside one other busy process on the 2-core "
+          f"machine (`bench/bench_sac.py`, privileged ts-ptv, updates/s: "
+          f"{', '.join(f'{when} {b:g}' for when, b in benches if b) or '-'}). Minutes: training with its "
+          "validations, not the evaluation after it (eval.json's train_minutes).", "",
           "| task | seed | episodes | stopped as learned | first held (episode) | validations that did not hold | minutes |",
           "|---|---|---|---|---|---|---|"]
     for r in sorted(runs, key=lambda r: (r["cfg"]["task"], r["cfg"]["seed"])):
