@@ -114,6 +114,12 @@ def with_presets(config_cls, given):
     return given
 
 
+def preset_defaults(config_cls, flags):
+    """The config a run's flags (a dict) are told against: the defaults, under the presets the run set (--robust)."""
+    return replace(config_cls(), **with_presets(config_cls, {k: v for k, v in flags.items()
+                                                             if k in getattr(config_cls, "PRESETS", {})}))
+
+
 def check(cfg):
     """Every value, and every file the command will write, before any work starts."""
     check_bounds(cfg)
@@ -183,10 +189,8 @@ def default_run_dir(cfg):
     [-rand-<families>][-imgnorm-<norm>][-<tag><value> of RUN_NAME_TAGS]-s<seed>: the flags of the baselines,
     ablations and options are in its name (beside --robust, those that differ from its), so that no run overwrites
     another's directory."""
-    default = type(cfg)                                 # the config's class: its defaults (and --robust's)
+    default = preset_defaults(type(cfg), vars(cfg))     # the config's defaults (and --robust's)
     robust = getattr(cfg, "robust", False)
-    if robust:
-        default = replace(default(), **default.PRESETS["robust"])
     name = f"{cfg.task}-{'robust-' if robust else ''}{'vanilla-' if cfg.vanilla else ''}{cfg.obs}-{cfg.curriculum}"
     name += f"-e{cfg.error_mm:g}" if cfg.error_mm != default.error_mm else ""
     name += f"-roi-{cfg.roi}" if cfg.roi != "task" else ""

@@ -10,8 +10,8 @@ import numpy as np
 
 import tacrl_flat  # noqa: F401  (first: where another package shadows one of our modules, one line says so)
 import control as ctl
-from scene import (BRASS, BUMP_R_MAX, CHAMFER, DARK, GEAR_CENTRES, GEAR_R_TIP, GREY, PART_BLUE, PEG_RADIUS, SHAFT_HEIGHT,
-                   TOOL_FRICTION, WORKCELL, Context)
+from scene import (BRASS, BUMP_R_MAX, CHAMFER, DARK, GEAR_CENTRES, GEAR_R_TIP, GREY, PART_BLUE, PEG_RADIUS,
+                   SHAFT_HEIGHT, TOOL_FRICTION, WORKCELL, Context)
 
 # Every context but 'train' is for testing. The four other places of the board on the table (the paper's
 # "four different table locations"), 25-30 cm from the training place, each turned; objects of several sizes
@@ -202,6 +202,19 @@ def overlaps(xy, he, others, gap=0.0):
     return any(np.all(np.abs(np.subtract(xy, o[1])) < np.add(he[:2], o[0][:2]) + gap) for o in others)
 
 
+def _on_board(rng, he):
+    """A centre (board frame) that keeps a box of half extents he whole on the board."""
+    return rng.uniform(-BOARD_HALF + np.array(he[:2]), BOARD_HALF - np.array(he[:2]))
+
+
+def _fits(xy, he, task, others, ring):
+    """Whether a box (centre xy, half extents he) has its nearest side within ring (m from the axis), lies off the
+    mating gear and clear of `others` by OBJECT_GAP."""
+    if not ring[0] <= box_gap((0.0, 0.0), xy, he) <= ring[1] or overlaps(xy, he, others, OBJECT_GAP):
+        return False
+    return task != "gear" or box_gap((GEAR_CENTRES, 0.0), xy, he) >= GEAR_R_TIP + OBJECT_GAP
+
+
 def _draw_objects(rng, task, others=()):
     """OBJECTS_PER_SCENE workbench objects (boxes, the board's frame) on the board, beyond the tool's reach, off
     the mating gear and clear of `others` (the scene's parts), added to them."""
@@ -209,13 +222,9 @@ def _draw_objects(rng, task, others=()):
     n = len(out) + rng.integers(OBJECTS_PER_SCENE[0], OBJECTS_PER_SCENE[1] + 1)
     while len(out) < n:
         he = (*(rng.uniform(*OBJECT_SIDE, 2) / 2), rng.uniform(*OBJECT_TALL) / 2)
-        xy = rng.uniform(-BOARD_HALF + np.array(he[:2]), BOARD_HALF - np.array(he[:2]))
-        near = box_gap((0.0, 0.0), xy, he)                                 # the axis to the box's nearest side
-        if not max(OBJECT_RING[0], tool_reach(task, 2 * he[2]) + OBJECT_GAP) <= near <= OBJECT_RING[1]:
-            continue
-        if task == "gear" and box_gap((GEAR_CENTRES, 0.0), xy, he) < GEAR_R_TIP + OBJECT_GAP:    # off the mating gear
-            continue
-        if overlaps(xy, he, out, OBJECT_GAP):
+        xy = _on_board(rng, he)
+        near = max(OBJECT_RING[0], tool_reach(task, 2 * he[2]) + OBJECT_GAP)     # beyond the tool's reach
+        if not _fits(xy, he, task, out, (near, OBJECT_RING[1])):
             continue
         rgba = PART_COLOURS[rng.integers(len(PART_COLOURS))] if rng.random() < 0.5 else _draw_colour(rng, OBJECT_VALUE)
         out.append((_floats(he, 4), _floats(xy, 4), rgba))
@@ -233,7 +242,7 @@ def reach_ring(task):
 def _draw_reach(rng, task, others=()):
     """REACH_PER_SCENE thin or low things within the tool's reach (reach_ring), then REACH_BLOCKS of the objects
     family's largest blocks just beyond it, each whole on the board, off the mating gear and clear of `others`."""
-    out, (r0, r1) = list(others), reach_ring(task)
+    out = list(others)
     n = len(out) + rng.integers(REACH_PER_SCENE[0], REACH_PER_SCENE[1] + 1)
     while len(out) < n:
         if rng.random() < 0.5:                                             # thin and long, along x or y
@@ -243,10 +252,8 @@ def _draw_reach(rng, task, others=()):
             h, side = REACH_LOW[rng.integers(len(REACH_LOW))]
             half = (rng.uniform(*side),) * 2
         he = (*half, h)
-        xy = rng.uniform(-BOARD_HALF + np.array(he[:2]), BOARD_HALF - np.array(he[:2]))
-        if not r0 <= box_gap((0.0, 0.0), xy, he) <= r1 or overlaps(xy, he, out, OBJECT_GAP):
-            continue
-        if task == "gear" and box_gap((GEAR_CENTRES, 0.0), xy, he) < GEAR_R_TIP + OBJECT_GAP:
+        xy = _on_board(rng, he)
+        if not _fits(xy, he, task, out, reach_ring(task)):
             continue
         out.append((_floats(he, 5), _floats(xy, 4), PART_COLOURS[rng.integers(len(PART_COLOURS))]))
     n = len(out) + rng.integers(REACH_BLOCKS[0], REACH_BLOCKS[1] + 1)
@@ -255,10 +262,8 @@ def _draw_reach(rng, task, others=()):
         if len(out) == n:
             break
         he = (*(rng.uniform(*REACH_BLOCK_SIDE, 2) / 2), rng.uniform(*REACH_BLOCK_TALL) / 2)
-        xy = rng.uniform(-BOARD_HALF + np.array(he[:2]), BOARD_HALF - np.array(he[:2]))
-        if not near <= box_gap((0.0, 0.0), xy, he) <= near + 0.015 or overlaps(xy, he, out, OBJECT_GAP):
-            continue
-        if task == "gear" and box_gap((GEAR_CENTRES, 0.0), xy, he) < GEAR_R_TIP + OBJECT_GAP:
+        xy = _on_board(rng, he)
+        if not _fits(xy, he, task, out, (near, near + 0.015)):
             continue
         out.append((_floats(he, 4), _floats(xy, 4), _draw_colour(rng, OBJECT_VALUE)))
     return tuple(out)
@@ -289,12 +294,13 @@ def context_of(name, task="peg"):
     if name in CONTEXTS:
         return CONTEXTS[name]
     family, _, seed = name.partition(":")
-    if drawn_family(name):                          # the first scene the env draws from: held-out or training's side
-        return family_context(family, drawn_family(name)[1], task)
+    drawn = drawn_family(name)
+    if drawn:                                       # the first scene the env draws from: held-out or training's side
+        return family_context(family, drawn[1], task)
     if family in FAMILIES and seed.isdigit():
         return family_context(family, int(seed), task)
-    raise ValueError(f"unknown context {name!r} ({', '.join(CONTEXTS)}, or FAMILY:SEED, FAMILY:test or FAMILY:train with FAMILY "
-                     f"one of {', '.join(FAMILIES)})")
+    raise ValueError(f"unknown context {name!r} ({', '.join(CONTEXTS)}, or FAMILY:SEED, FAMILY:test or FAMILY:train "
+                     f"with FAMILY one of {', '.join(FAMILIES)})")
 
 
 def context_key(name, task="peg"):

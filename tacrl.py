@@ -309,10 +309,15 @@ class StopRule:
             log(f"  in {FAMILY_EPISODES} scenes of each family's training side: "
                 + ", ".join(f"{f} {wins[f]}" for f in self.families))
         self.history.append(wins)
-        self.stopped = wins["train"] >= VAL_WINS and all(wins.get(f, 0) >= FAMILY_WINS for f in self.families)
+        self.stopped = self.holds(wins, self.families)
         if self.stopped:
             log(f"stopped as learned at episode {ep + 1} (--stop-held 0 trains all {self.episodes})")
         return self.stopped
+
+    @staticmethod
+    def holds(wins, families):
+        """Whether a validation ({'train': wins, family: wins, ...}) ends the run: training's scene and each family."""
+        return wins["train"] >= VAL_WINS and all(wins.get(f, -1) >= FAMILY_WINS for f in families)
 
     def state_dict(self):
         return {"held": self.held, "stopped": self.stopped, "history": self.history}
@@ -321,25 +326,21 @@ class StopRule:
         self.held, self.stopped, self.history = int(d["held"]), bool(d.get("stopped", False)), d.get("history", [])
 
 
-def validate(cfg, sac, curr, worker=None):
-    """Greedy successes at the final range in training's scene, in a new env, on seeds apart from training's and
-    evaluation's (half of them played by worker, an evaluate.Worker, where there is one)."""
+def validate(cfg, sac, curr, worker=None, family=None):
+    """Greedy successes at the final range in training's scene (VAL_EPISODES), or in FAMILY_EPISODES scenes of a
+    randomized family's training side (FAMILY:train, never its held-out seeds), in a new env, on seeds apart from
+    training's and evaluation's (half of them played by worker, an evaluate.Worker, where there is one)."""
     pi = evaluate.TrainedPolicy(evaluate.policy_file(sac, {"obs": cfg.obs}), sac.device)   # sac.act's greedy action
-    with make_env(replace(cfg, randomize=""), e_r=curr.final, ex_r=curr.ranges()[1]) as env:
-        row = evaluate.evaluate(env, pi, VAL_EPISODES, VAL_SEED + cfg.seed, log=lambda *_: None, worker=worker)
-    return round(row["success_rate"] * VAL_EPISODES)
+    episodes = FAMILY_EPISODES if family else VAL_EPISODES
+    with make_env(replace(cfg, context=f"{family}:train" if family else cfg.context, randomize=""), e_r=curr.final,
+                  ex_r=curr.ranges()[1]) as env:
+        row = evaluate.evaluate(env, pi, episodes, VAL_SEED + cfg.seed, log=lambda *_: None, worker=worker)
+    return round(row["success_rate"] * episodes)
 
 
 def validate_families(cfg, sac, curr, worker=None):
-    """{family: greedy successes} at the final range in FAMILY_EPISODES scenes of each randomized family's training
-    side (FAMILY:train, never its held-out seeds), on validation's seeds."""
-    pi, out = evaluate.TrainedPolicy(evaluate.policy_file(sac, {"obs": cfg.obs}), sac.device), {}
-    for family in cfg.families:
-        with make_env(replace(cfg, context=f"{family}:train", randomize=""), e_r=curr.final,
-                      ex_r=curr.ranges()[1]) as env:
-            row = evaluate.evaluate(env, pi, FAMILY_EPISODES, VAL_SEED + cfg.seed, log=lambda *_: None, worker=worker)
-        out[family] = round(row["success_rate"] * FAMILY_EPISODES)
-    return out
+    """{family: validate's successes in its training side} for each randomized family."""
+    return {family: validate(cfg, sac, curr, worker, family) for family in cfg.families}
 
 
 def policy_meta(cfg, curr):

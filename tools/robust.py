@@ -79,11 +79,6 @@ def bench_of(path):
     return float(m.group(1)) if m else None
 
 
-def held(v, families):
-    """Whether a validation (eval.json's) held in training's scene and every family, as the stop rule asks."""
-    return v["train"] >= tacrl.VAL_WINS and all(v.get(f, -1) >= tacrl.FAMILY_WINS for f in families)
-
-
 def missed(v, families):
     """What a validation that did not hold lacked: training's scene, or the families below the stop rule's bar."""
     if v["train"] < tacrl.VAL_WINS:
@@ -108,13 +103,15 @@ def flag_table(robust=FLAG_RUNS, yardstick=YARDSTICK):
           f"machine (`bench/bench_sac.py`, privileged ts-ptv, updates/s: "
           f"{', '.join(f'{when} {b:g}' for when, b in benches if b) or '-'}). Minutes: training with its "
           "validations, not the evaluation after it (eval.json's train_minutes).", "",
-          "| task | seed | episodes | stopped as learned | first held (episode) | validations that did not hold | minutes |",
+          "| task | seed | episodes | stopped as learned | first held (episode) | validations that did not hold "
+          "| minutes |",
           "|---|---|---|---|---|---|---|"]
     for r in sorted(runs, key=lambda r: (r["cfg"]["task"], r["cfg"]["seed"])):
         fams = tuple(f for f in r["cfg"]["randomize"].split(",") if f)
         val = r["eval"].get("validation", [])
-        first = next((v["episode"] for v in val if held(v, fams)), None)
-        lacked = "; ".join(f"{v['episode']}: {missed(v, fams)}" for v in val if not held(v, fams)) or "-"
+        holds = [tacrl.StopRule.holds(v, fams) for v in val]
+        first = next((v["episode"] for v, ok in zip(val, holds) if ok), None)
+        lacked = "; ".join(f"{v['episode']}: {missed(v, fams)}" for v, ok in zip(val, holds) if not ok) or "-"
         episodes = r["eval"]["train_episodes"]
         md.append(f"| {r['cfg']['task']} | {r['cfg']['seed']} | {episodes} | {'yes' if first == episodes else 'no'} | "
                   f"{first or '-'} | {lacked} | {r['eval']['train_minutes']:.1f} |")

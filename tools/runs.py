@@ -10,7 +10,7 @@ import glob
 import json
 import os
 import shutil
-from dataclasses import asdict, fields, replace
+from dataclasses import asdict, fields
 
 import numpy as np
 import torch
@@ -116,7 +116,7 @@ def method_of(cfg):
         name = "ours"
     else:
         name = f"{cfg['obs']}, {cfg['curriculum']} to {cfg['error_mm']:g} mm, roi {cfg['roi']}"
-    default = defaults_of(cfg)
+    default = command.preset_defaults(tacrl.Config, cfg)
     named = ("task", "seed", "context", "vanilla", "obs", "curriculum", "roi", "error_mm", "robust") + \
         command.NOT_LEARNING
     changed = [f"{k} {v}" for k, v in cfg.items()         # (a retired flag is in cfg only where not today's code)
@@ -125,15 +125,10 @@ def method_of(cfg):
     return name + (f" ({', '.join(changed)})" if changed else "")
 
 
-def defaults_of(cfg):
-    """The Config a run's flags are told against: the defaults, or with --robust, those it sets."""
-    return replace(tacrl.Config(), **tacrl.Config.PRESETS["robust"]) if cfg.get("robust") else tacrl.Config()
-
-
 def command_of(cfg):
     """The training command that reproduces a run: the flags whose values differ from the defaults (with the
     critics study's flags, the command of its commit)."""
-    default, flags = defaults_of(cfg), ["python tacrl.py"]
+    default, flags = command.preset_defaults(tacrl.Config, cfg), ["python tacrl.py"]
     for k, v in cfg.items():
         if k in ("run_dir", "threads", "device", "resume", "track"):
             continue
