@@ -230,16 +230,38 @@ def test_the_robust_runs_table_shows_where_each_seed_first_held_and_its_time_aga
     import robust
     fams = tacrl.parse_args(["--robust"]).families
     fail = {"episode": 60, "train": 20, **{f: 10 for f in fams}, "calib": 7}
-    hold = {"episode": 90, "train": 19, **{f: 9 for f in fams}}
-    _robust_run(tmp_path / "robust-flag", "peg-s0", "peg", 0, 40.0, 90, [{"episode": 30, "train": 15}, fail, hold])
+    looked = {"episode": 90, "train": 19, **{f: 9 for f in fams}}           # a first look that passed, then 30 each
+    unconfirmed = {**looked, "confirm": {**{f: 30 for f in fams}, "mixed": 26}}
+    hold = {**looked, "episode": 120, "confirm": {f: 27 for f in fams}}
+    _robust_run(tmp_path / "robust-flag", "peg-s0", "peg", 0, 40.0, 120,
+                [{"episode": 30, "train": 15}, fail, unconfirmed, hold])
     _robust_run(tmp_path / "robust-flag", "peg-s1", "peg", 1, 60.0, 600, [fail])
+    _robust_run(tmp_path / "robust-flag", "peg-s2", "peg", 2, 50.0, 90, [looked])    # stopped by a first look alone
     for s, minutes in enumerate((10.0, 30.0, 20.0)):
         _robust_run(tmp_path / "quickstart", f"peg-{s}", "peg", s, minutes, 150, robust=False)
     (tmp_path / "robust-flag" / "bench-before.txt").write_text("ts-ptv critics privileged: median  49.4 updates/s\n")
     md = robust.flag_table(f"{tmp_path}/robust-flag/*", f"{tmp_path}/quickstart/*")
     rows = {r.split("|")[2].strip(): [c.strip() for c in r.split("|")[1:-1]] for r in md.splitlines()
             if r.startswith("| peg |")}
-    assert rows["0"][2:5] == ["90", "yes", "90"] and "30: train 15/20" in rows["0"][5] and "60: calib 7/10" in rows["0"][5]
+    assert rows["0"][2:5] == ["120", "yes", "120"]
+    assert [x.strip() for x in rows["0"][5].split(";")] == ["30: train 15/20", "60: calib 7/10", "90: mixed 26/30"]
     assert rows["1"][2:5] == ["600", "no", "-"]
-    ratio = next(r for r in md.splitlines() if r.startswith("| peg (2 and 3 seeds)"))
+    assert rows["2"][2:5] == ["90", "yes", "-"] and "unconfirmed" in rows["2"][5]
+    ratio = next(r for r in md.splitlines() if r.startswith("| peg (3 and 3 seeds)"))
     assert [c.strip() for c in ratio.split("|")[2:5]] == ["50.0", "20.0", "2.5"] and "49.4" in md
+
+
+def test_a_run_a_first_look_stopped_is_shown_beside_its_held_out_scenes(tmp_path):
+    import json
+    import robust
+    fams = tacrl.parse_args(["--robust"]).families
+    _robust_run(tmp_path / "first", "gear-s0", "gear", 0, 70.0, 360, [{"episode": 360, "train": 20,
+                                                                       **{f: 10 for f in fams}, "colour": 9}])
+    d = tmp_path / "first" / "gear-s0"
+    (d / "eval-ctx-mixed-test.json").write_text(json.dumps({"rows": [{"error_mm": 20.0, "success_rate": 0.6}]}))
+    (d / "eval-scenes-mixed.json").write_text(json.dumps({"rates": [1.0, 1 / 3, 2 / 3, 0.0]}))
+    rows = {r.split("|")[4].strip(): [c.strip() for c in r.split("|")[1:-1]]
+            for r in robust.first_look_table(f"{tmp_path}/first/*").splitlines() if r.startswith("| gear |")}
+    assert list(rows) == list(fams)
+    assert rows["mixed"][2:] == ["360", "mixed", "10/10", "0.60", "0.50 / 0.50"]
+    assert rows["colour"][4:] == ["9/10", "-", "-"]

@@ -562,42 +562,66 @@ def test_a_saved_policy_keeps_its_encoders_layout(tmp_path, state_dim, image_nor
         evaluate.TrainedPolicy(old)
 
 
-@pytest.mark.parametrize("train, families, stops", [([2, 2, 2], [{"reach": 1, "calib": 2}] * 3, None),
-                                                    ([1, 2, 2], [{"reach": 2, "calib": 1}, {"reach": 2, "calib": 2}], 9),
-                                                    ([2], [{"reach": 2, "calib": 2}], 3)])
-def test_with_families_the_stop_rule_also_asks_each_familys_training_side(train, families, stops, monkeypatch):
+@pytest.mark.parametrize("train, first, confirm, stops", [
+    ([2, 2, 2], [{"reach": 1, "calib": 2}] * 3, [], None),                          # a family never passes a look
+    ([1, 2, 2], [{"reach": 2, "calib": 1}, {"reach": 2, "calib": 2}], [{"reach": 4, "calib": 4}], 9),
+    ([2, 2, 2], [{"reach": 2, "calib": 2}] * 3, [{"reach": 3, "calib": 4}] * 3, None),  # passes looks, never confirms
+    ([2], [{"reach": 2, "calib": 2}], [{"reach": 4, "calib": 4}], 3)])
+def test_with_families_the_stop_rule_asks_each_familys_training_side_and_confirms_a_pass(train, first, confirm, stops,
+                                                                                          monkeypatch):
     # --randomize: validated every FAMILY_EVERY (3 here) episodes; the families only where training's scene passes
-    # (VAL_WINS 2), and every family must hold (FAMILY_WINS 2) for the run to stop
-    monkeypatch.setattr(tacrl, "FAMILY_EVERY", 3)
-    monkeypatch.setattr(tacrl, "VAL_WINS", 2)
-    monkeypatch.setattr(tacrl, "FAMILY_WINS", 2)
+    # (VAL_WINS 2), a first look of FAMILY_EPISODES (2) each; where every family has FAMILY_WINS (2), FAMILY_CONFIRM
+    # (5) each, and every family must have FAMILY_CONFIRM_WINS (4) there for the run to stop
+    for name, value in [("FAMILY_EVERY", 3), ("VAL_WINS", 2), ("FAMILY_EPISODES", 2), ("FAMILY_WINS", 2),
+                        ("FAMILY_CONFIRM", 5), ("FAMILY_CONFIRM_WINS", 4)]:
+        monkeypatch.setattr(tacrl, name, value)
     rule = tacrl.StopRule(tacrl.Config(stop_held=3, train_episodes=10, randomize="reach,calib"))
-    at, asked = [], []
+    at, looked, confirmed = [], [], []
+
+    def families(n):
+        asked = looked if n == 2 else confirmed
+        asked.append(ep + 1)
+        return (first if n == 2 else confirm)[len(asked) - 1]
     for ep in range(10):
-        if rule.learned(True, lambda: at.append(ep + 1) or train[len(at) - 1],
-                        lambda: asked.append(ep + 1) or families[len(asked) - 1], lambda *_: None, ep):
+        if rule.learned(True, lambda: at.append(ep + 1) or train[len(at) - 1], families, lambda *_: None, ep):
             break
     assert at == [3, 6, 9][:len(at)] and ep + 1 == (stops or 10)
-    assert asked == [a for a, w in zip(at, train) if w >= 2]             # the families where training's scene passed
+    assert looked == [a for a, w in zip(at, train) if w >= 2]             # the families where training's scene passed
+    assert confirmed == [a for a, f in zip(looked, first) if min(f.values()) >= 2]     # ... and each family's look
     assert [h["episode"] for h in rule.history] == at and rule.stopped == bool(stops)
+    assert [tacrl.StopRule.holds(h, ("reach", "calib")) for h in rule.history][-1] == bool(stops)
     restored = tacrl.StopRule(tacrl.Config(randomize="reach,calib"))
     restored.load_state_dict(rule.state_dict())
     assert restored.history == rule.history
 
 
+def test_a_run_an_earlier_rule_stopped_trains_on_where_this_rule_does_not_confirm_it():
+    first_look = {"episode": 360, "train": 20, "reach": 10, "calib": 9}          # no confirmation: 10 a family alone
+    for randomize, stays in (("reach,calib", False), ("", True)):
+        rule = tacrl.StopRule(tacrl.Config(randomize=randomize))
+        rule.load_state_dict({"held": 60, "stopped": True, "history": [first_look]})
+        assert rule.stopped == stays and rule.history == [first_look]
+    rule = tacrl.StopRule(tacrl.Config(randomize="reach,calib"))
+    for calib, stays in ((27, True), (26, False)):                        # confirmed, or not: 27 of 30 a family
+        rule.load_state_dict({"held": 60, "stopped": True,
+                              "history": [{**first_look, "confirm": {"reach": 30, "calib": calib}}]})
+        assert rule.stopped == stays
+
+
 def test_a_robust_run_validates_in_each_family_and_keeps_what_it_found(tmp_path, monkeypatch):
     # --robust with no curriculum, so that it is validated after episode 2; 0 wins pass everywhere, and eval.json
-    # holds the validation: training's scene and each family's training side, one episode each
+    # holds the validation: training's scene and each family's training side, one episode each, then two
     monkeypatch.setattr(sim, "MAX_STEPS", 4)
     for name, value in [("VAL_EPISODES", 1), ("FAMILY_EPISODES", 1), ("FAMILY_EVERY", 2), ("VAL_WINS", 0),
-                        ("FAMILY_WINS", 0)]:
+                        ("FAMILY_WINS", 0), ("FAMILY_CONFIRM", 2), ("FAMILY_CONFIRM_WINS", 0)]:
         monkeypatch.setattr(tacrl, name, value)
     cfg = tacrl.parse_args(TINY + ["--robust", "--randomize", "reach,calib", "--curriculum", "none", "--stop-held",
                                    "2", "--run-dir", str(tmp_path / "run")])
     assert (cfg.image_norm, cfg.tilt_deg, cfg.randomize) == ("image", 1.0, "reach,calib")   # a flag given wins
     result = tacrl.train(cfg, log=lambda *_: None)
-    assert result["train_episodes"] == 2 and result["validation"] == [{"episode": 2, "train": 0, "reach": 0,
-                                                                       "calib": 0}]
+    (seen,) = result["validation"]
+    assert result["train_episodes"] == 2 and seen["episode"] == 2 and (seen["train"], seen["reach"]) == (0, 0)
+    assert set(seen["confirm"]) == {"reach", "calib"} and all(0 <= n <= 2 for n in seen["confirm"].values())
 
 
 def test_robust_is_one_flag_for_the_option_and_names_its_run():

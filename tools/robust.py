@@ -1,8 +1,9 @@
-"""robust.py: what the robust option costs, and when it holds (issue 83; docs/robust.md). Two blocks:
+"""robust.py: what the robust option costs, and when it holds (issue 83; docs/robust.md). Three blocks:
 `robust-before`, when the option's archived runs (made before --robust, their families as then drawn) first held
 every family, from the evaluations kept beside them; and `robust-runs`, the --robust runs (`python tools/sweep.py
 robust-flag`) beside the quickstart's command on the same machine at the same threads (`python tools/sweep.py
-quickstart`): their episodes, their time against the bench figure, and each validation of the stop rule.
+quickstart`): their episodes, their time against the bench figure, and each validation of the stop rule; and
+`robust-first-look`, a run that 10 scenes a family stopped alone, beside its held-out scenes (why a pass is confirmed).
 """
 import glob
 import os
@@ -21,6 +22,7 @@ MM = 20.0
 BEFORE = ",".join(f"{RESULTS_DIR}/{e}/*" for e in ("tilt", "ext", "ext400", "ext500", "ep600"))
 OPTION_FAMILIES = ("place", "light", "colour", "parts", "objects", "touch", "mixed")   # as the option's runs drew them
 FLAG_RUNS, YARDSTICK = f"{RESULTS_DIR}/robust-flag/*", f"{RESULTS_DIR}/quickstart/*"
+FIRST_LOOK = f"{RESULTS_DIR}/robust-first-look/*"   # --robust stopped by 10 scenes a family alone (the rule before 30)
 BENCH = re.compile(r"ts-ptv critics privileged: median\s+([\d.]+) updates/s")
 
 
@@ -83,7 +85,11 @@ def missed(v, families):
     """What a validation that did not hold lacked: training's scene, or the families below the stop rule's bar."""
     if v["train"] < tacrl.VAL_WINS:
         return f"train {v['train']}/{tacrl.VAL_EPISODES}"
-    return ", ".join(f"{f} {v[f]}/{tacrl.FAMILY_EPISODES}" for f in families if v[f] < tacrl.FAMILY_WINS)
+    if "confirm" in v:                  # a first look that passed, not confirmed
+        return ", ".join(f"{f} {v['confirm'][f]}/{tacrl.FAMILY_CONFIRM}" for f in families
+                         if v["confirm"][f] < tacrl.FAMILY_CONFIRM_WINS)
+    return ", ".join(f"{f} {v[f]}/{tacrl.FAMILY_EPISODES}" for f in families if v[f] < tacrl.FAMILY_WINS) or \
+        f"stopped here on {tacrl.FAMILY_EPISODES} scenes a family, unconfirmed (before the rule's confirmation)"
 
 
 def flag_table(robust=FLAG_RUNS, yardstick=YARDSTICK):
@@ -113,7 +119,7 @@ def flag_table(robust=FLAG_RUNS, yardstick=YARDSTICK):
         first = next((v["episode"] for v, ok in zip(val, holds) if ok), None)
         lacked = "; ".join(f"{v['episode']}: {missed(v, fams)}" for v, ok in zip(val, holds) if not ok) or "-"
         episodes = r["eval"]["train_episodes"]
-        md.append(f"| {r['cfg']['task']} | {r['cfg']['seed']} | {episodes} | {'yes' if first == episodes else 'no'} | "
+        md.append(f"| {r['cfg']['task']} | {r['cfg']['seed']} | {episodes} | {'yes' if episodes < r['cfg']['train_episodes'] else 'no'} | "
                   f"{first or '-'} | {lacked} | {r['eval']['train_minutes']:.1f} |")
     md += ["", "| task | --robust, median minutes | the quickstart's, median minutes | ratio |", "|---|---|---|---|"]
     for task in sorted({r["cfg"]["task"] for r in runs}):
@@ -125,10 +131,33 @@ def flag_table(robust=FLAG_RUNS, yardstick=YARDSTICK):
     return "\n".join(md)
 
 
+def first_look_table(patterns=FIRST_LOOK):
+    """The block robust-first-look: runs that 10 scenes a family stopped alone, their last validation beside the
+    held-out families (20 trials each, eval-ctx-FAMILY-test.json) and, where evaluated, each family's 100 held-out
+    scenes (eval-scenes-FAMILY.json: the mean SR and the share of scenes below 0.5)."""
+    md = [f"Made by `python tools/report.py` from `{patterns}` (world 22): the stop's validation (training-side scenes "
+          "of each family, successes of 10), the held-out family at 20 mm (20 trials) and, where evaluated, its "
+          "first 100 held-out scenes x 3 episodes (mean SR / share of scenes below 0.5).", "",
+          "| task | seed | stopped at | family | validation | held-out, 20 trials | 100 scenes |", "|---|---|---|---|---|---|---|"]
+    for d in match_runs(patterns):
+        run = load_run(d)
+        last = run["eval"]["validation"][-1]
+        for f in (f for f in run["cfg"]["randomize"].split(",") if f):
+            ctx = os.path.join(d, f"eval-ctx-{f}-test.json")
+            held = f"{sr_at(read_json(ctx)['rows']):.2f}" if os.path.exists(ctx) else "-"
+            path = os.path.join(d, f"eval-scenes-{f}.json")
+            rates = np.array(read_json(path)["rates"]) if os.path.exists(path) else None
+            many = "-" if rates is None else f"{rates.mean():.2f} / {(rates < 0.5).mean():.2f}"
+            md.append(f"| {run['cfg']['task']} | {run['cfg']['seed']} | {last['episode']} | {f} | {last[f]}/10 | "
+                      f"{held} | {many} |")
+    return "\n".join(md)
+
+
 def make():
     """{block: markdown} of docs/robust.md, each where its runs are archived (else the page's block stays as it is)."""
     made = {}
-    for name, block in (("robust-before", lambda: before_table(before_rows())), ("robust-runs", flag_table)):
+    for name, block in (("robust-before", lambda: before_table(before_rows())), ("robust-runs", flag_table),
+                        ("robust-first-look", first_look_table)):
         try:
             made[name] = block()
         except ArgError:                # no such run archived (yet, or here)
