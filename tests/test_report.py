@@ -249,6 +249,9 @@ def test_the_robust_runs_table_shows_where_each_seed_first_held_and_its_time_aga
     assert rows["2"][2:5] == ["90", "yes", "-"] and "unconfirmed" in rows["2"][5]
     ratio = next(r for r in md.splitlines() if r.startswith("| peg (3 and 3 seeds)"))
     assert [c.strip() for c in ratio.split("|")[2:5]] == ["50.0", "20.0", "2.5"] and "49.4" in md
+    said = robust.readme_time(f"{tmp_path}/robust-flag/*", f"{tmp_path}/quickstart/*")   # the README's sentence
+    assert "seeds 0, 1, 2 trained 120, 600, 90 episodes in 40, 60, 50 min" in said and "median of 20 min" in said
+    assert "49.4" in said
 
 
 def test_a_run_a_first_look_stopped_is_shown_beside_its_held_out_scenes(tmp_path):

@@ -92,11 +92,9 @@ def missed(v, families):
         f"stopped here on {tacrl.FAMILY_EPISODES} scenes a family, unconfirmed (before the rule's confirmation)"
 
 
-def flag_table(robust=FLAG_RUNS, yardstick=YARDSTICK):
-    """The block robust-runs: each --robust run (episodes, minutes, the validations that did not hold, where it
-    stopped) beside the quickstart's runs of its task; the medians' ratio; the bench figure saved beside them."""
-    runs = [load_run(d) for d in match_runs(robust)]
-    runs = [r for r in runs if r["eval"]]
+def flag_runs(robust=FLAG_RUNS, yardstick=YARDSTICK):
+    """(the finished --robust runs, the quickstart's, [(when, bench figure)] saved beside them)."""
+    runs = [r for r in (load_run(d) for d in match_runs(robust)) if r["eval"]]
     try:
         yard = [r for r in (load_run(d) for d in match_runs(yardstick)) if r["eval"]]
     except ArgError:                    # the yardstick not archived yet: its cells are dashes
@@ -104,6 +102,31 @@ def flag_table(robust=FLAG_RUNS, yardstick=YARDSTICK):
     folder = os.path.dirname(robust)                       # (the pattern's folder: results/robust-flag)
     benches = [(os.path.basename(p)[len("bench-"):-len(".txt")], bench_of(p))      # bench-before.txt, bench-after.txt
                for p in sorted(glob.glob(os.path.join(folder, "bench-*.txt")), reverse=True)]
+    return sorted(runs, key=lambda r: (r["cfg"]["task"], r["cfg"]["seed"])), yard, benches
+
+
+def readme_time(robust=FLAG_RUNS, yardstick=YARDSTICK):
+    """The README's block readme-robust: each --robust run's episodes and minutes, the bench figure, and the
+    quickstart's median minutes run the same way."""
+    runs, yard, benches = flag_runs(robust, yardstick)
+    said = []
+    for task in sorted({r["cfg"]["task"] for r in runs}):
+        mine = [r for r in runs if r["cfg"]["task"] == task]
+        quick = [r["eval"]["train_minutes"] for r in yard if r["cfg"]["task"] == task]
+        seeds = ", ".join(str(r["cfg"]["seed"]) for r in mine)
+        episodes = ", ".join(str(r["eval"]["train_episodes"]) for r in mine)
+        minutes = ", ".join(f"{r['eval']['train_minutes']:.0f}" for r in mine)
+        said.append(f"the {task}'s seed{'s' * (len(mine) > 1)} {seeds} trained {episodes} episodes in {minutes} min"
+                    + (f" (the quickstart's command: a median of {np.median(quick):.0f} min)" if quick else ""))
+    bench = ", ".join(f"{b:g} updates/s {when} them" for when, b in benches if b) or "-"
+    return (f"Its reference runs ([results/robust-flag](results/robust-flag), world 22, each `--threads 1` beside one "
+            f"other run on 2 cores; `bench/bench_sac.py`: {bench}): " + "; ".join(said) + ".")
+
+
+def flag_table(robust=FLAG_RUNS, yardstick=YARDSTICK):
+    """The block robust-runs: each --robust run (episodes, minutes, the validations that did not hold, where it
+    stopped) beside the quickstart's runs of its task; the medians' ratio; the bench figure saved beside them."""
+    runs, yard, benches = flag_runs(robust, yardstick)
     md = [f"Made by `python tools/report.py` from `{robust}` (`python tools/sweep.py robust-flag`) and `{yardstick}` "
           f"(`python tools/sweep.py quickstart`): each run `--threads 1` beside one other busy process on the 2-core "
           f"machine (`bench/bench_sac.py`, privileged ts-ptv, updates/s: "
@@ -112,7 +135,7 @@ def flag_table(robust=FLAG_RUNS, yardstick=YARDSTICK):
           "| task | seed | episodes | stopped as learned | first held (episode) | validations that did not hold "
           "| minutes |",
           "|---|---|---|---|---|---|---|"]
-    for r in sorted(runs, key=lambda r: (r["cfg"]["task"], r["cfg"]["seed"])):
+    for r in runs:
         fams = tuple(f for f in r["cfg"]["randomize"].split(",") if f)
         val = r["eval"].get("validation", [])
         holds = [tacrl.StopRule.holds(v, fams) for v in val]
@@ -157,7 +180,7 @@ def make():
     """{block: markdown} of docs/robust.md, each where its runs are archived (else the page's block stays as it is)."""
     made = {}
     for name, block in (("robust-before", lambda: before_table(before_rows())), ("robust-runs", flag_table),
-                        ("robust-first-look", first_look_table)):
+                        ("robust-first-look", first_look_table), ("readme-robust", readme_time)):
         try:
             made[name] = block()
         except ArgError:                # no such run archived (yet, or here)
