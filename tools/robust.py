@@ -119,8 +119,8 @@ def readme_time(robust=FLAG_RUNS, yardstick=YARDSTICK):
         said.append(f"the {task}'s seed{'s' * (len(mine) > 1)} {seeds} trained {episodes} episodes in {minutes} min"
                     + (f" (the quickstart's command: a median of {np.median(quick):.0f} min)" if quick else ""))
     bench = ", ".join(f"{b:g} updates/s {when} them" for when, b in benches if b) or "-"
-    return (f"Its reference runs ([results/robust-flag](results/robust-flag), world 22, each `--threads 1` beside one "
-            f"other run on 2 cores; `bench/bench_sac.py`: {bench}): " + "; ".join(said) + ".")
+    return (f"Its reference runs ([results/robust-flag](results/robust-flag), world 22, each `--threads 1` beside "
+            f"another run on 2 cores, at times a third process too; `bench/bench_sac.py`: {bench}): " + "; ".join(said) + ".")
 
 
 def flag_table(robust=FLAG_RUNS, yardstick=YARDSTICK):
@@ -128,8 +128,8 @@ def flag_table(robust=FLAG_RUNS, yardstick=YARDSTICK):
     stopped) beside the quickstart's runs of its task; the medians' ratio; the bench figure saved beside them."""
     runs, yard, benches = flag_runs(robust, yardstick)
     md = [f"Made by `python tools/report.py` from `{robust}` (`python tools/sweep.py robust-flag`) and `{yardstick}` "
-          f"(`python tools/sweep.py quickstart`): each run `--threads 1` beside one other busy process on the 2-core "
-          f"machine (`bench/bench_sac.py`, privileged ts-ptv, updates/s: "
+          f"(`python tools/sweep.py quickstart`): each run `--threads 1` beside another run on the 2-core machine, at "
+          f"times a third process too (the report's evaluations, tests), so the minutes are upper bounds (`bench/bench_sac.py`, privileged ts-ptv, updates/s: "
           f"{', '.join(f'{when} {b:g}' for when, b in benches if b) or '-'}). Minutes: training with its "
           "validations, not the evaluation after it (eval.json's train_minutes).", "",
           "| task | seed | episodes | stopped as learned | first held (episode) | validations that did not hold "
