@@ -12,7 +12,8 @@ if os.environ.get("PYTEST_XDIST_WORKER_COUNT"):     # pytest -n: threads x worke
 # `--dist loadfile` hands a worker a whole file at a time, in this order (`--no-loadscope-reorder`): the files
 # whose tests take longest in all (`pytest --durations=0`) first, so that no worker is left alone with one at the
 # end while the other has finished
-LONGEST_FIRST = ("test_train.py", "test_sweep.py", "test_sim.py", "test_faults.py", "test_cli.py", "test_errors.py")
+LONGEST_FIRST = ("test_train.py", "test_sim.py", "test_faults.py", "test_cli.py", "test_families.py", "test_baselines.py",
+                 "test_sweep.py", "test_errors.py")
 
 
 def pytest_collection_modifyitems(items):
