@@ -188,7 +188,7 @@ def findings(families):
 
 # ---------------------------------------------------------------- every scene, not the family's mean (issue 83)
 SCENES, SCENE_EPISODES = 100, 3        # held-out scenes a family, episodes a scene: a family's worst decile shows
-SCENE_RUNS = f"{RESULTS_DIR}/option/*"     # (--robust's runs join once all six are archived)
+SCENE_RUNS = f"{RESULTS_DIR}/option/*,{RESULTS_DIR}/robust-flag/*"     # the option and --robust, as archived
 
 
 def scene_rates(job):
