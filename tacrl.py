@@ -66,7 +66,8 @@ class Config:
     train_episodes: int = train_opt(300, "max-episodes of Algorithm 1: the most a run trains", bounds=(1, None))
     stop_held: int = train_opt(30, "stop when learned: after this many episodes at the final range, every 10 the "
                                    "greedy policy tries 20 there; 19 wins stop the run (0: never); with --randomize, "
-                                   "every 30, and each family's training side must hold too (9 of 10 scenes each, then 27 of 30)",
+                                   "every 30, and each family's training side must hold too (9 of 10 scenes each, "
+                                   "then 27 of 30)",
                                bounds=(0, None))
     obs: str = train_opt("ts-ptv", "observations (Fig. 9); v: the visual baseline; ts-ptk: keypoint RL (the hole "
                                    "found in the image by a detector, with the pose and wrench histories; peg)",

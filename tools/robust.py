@@ -81,6 +81,11 @@ def bench_of(path):
     return float(m.group(1)) if m else None
 
 
+def families_of(run):
+    """The families a run randomized (tacrl.Config.families of its config.json)."""
+    return tuple(f for f in run["cfg"]["randomize"].split(",") if f)
+
+
 def missed(v, families):
     """What a validation that did not hold lacked: training's scene, or the families below the stop rule's bar."""
     if v["train"] < tacrl.VAL_WINS:
@@ -120,7 +125,8 @@ def readme_time(robust=FLAG_RUNS, yardstick=YARDSTICK):
                     + (f" (the quickstart's command: a median of {np.median(quick):.0f} min)" if quick else ""))
     bench = ", ".join(f"{b:g} updates/s {when} them" for when, b in benches if b) or "-"
     return (f"Its reference runs ([results/robust-flag](results/robust-flag), world 22, each `--threads 1` beside "
-            f"another run on 2 cores, at times a third process too; `bench/bench_sac.py`: {bench}): " + "; ".join(said) + ".")
+            f"another run on 2 cores, at times a third process too; `bench/bench_sac.py`: {bench}): "
+            + "; ".join(said) + ".")
 
 
 def flag_table(robust=FLAG_RUNS, yardstick=YARDSTICK):
@@ -129,20 +135,22 @@ def flag_table(robust=FLAG_RUNS, yardstick=YARDSTICK):
     runs, yard, benches = flag_runs(robust, yardstick)
     md = [f"Made by `python tools/report.py` from `{robust}` (`python tools/sweep.py robust-flag`) and `{yardstick}` "
           f"(`python tools/sweep.py quickstart`): each run `--threads 1` beside another run on the 2-core machine, at "
-          f"times a third process too (the report's evaluations, tests), so the minutes are upper bounds (`bench/bench_sac.py`, privileged ts-ptv, updates/s: "
+          f"times a third process too (the report's evaluations, tests), so the minutes are upper bounds "
+          f"(`bench/bench_sac.py`, privileged ts-ptv, updates/s: "
           f"{', '.join(f'{when} {b:g}' for when, b in benches if b) or '-'}). Minutes: training with its "
           "validations, not the evaluation after it (eval.json's train_minutes).", "",
           "| task | seed | episodes | stopped as learned | first held (episode) | validations that did not hold "
           "| minutes |",
           "|---|---|---|---|---|---|---|"]
     for r in runs:
-        fams = tuple(f for f in r["cfg"]["randomize"].split(",") if f)
+        fams = families_of(r)
         val = r["eval"].get("validation", [])
         holds = [tacrl.StopRule.holds(v, fams) for v in val]
         first = next((v["episode"] for v, ok in zip(val, holds) if ok), None)
         lacked = "; ".join(f"{v['episode']}: {missed(v, fams)}" for v, ok in zip(val, holds) if not ok) or "-"
         episodes = r["eval"]["train_episodes"]
-        md.append(f"| {r['cfg']['task']} | {r['cfg']['seed']} | {episodes} | {'yes' if episodes < r['cfg']['train_episodes'] else 'no'} | "
+        stopped = "yes" if episodes < r["cfg"]["train_episodes"] else "no"
+        md.append(f"| {r['cfg']['task']} | {r['cfg']['seed']} | {episodes} | {stopped} | "
                   f"{first or '-'} | {lacked} | {r['eval']['train_minutes']:.1f} |")
     md += ["", "| task | --robust, median minutes | the quickstart's, median minutes | ratio |", "|---|---|---|---|"]
     for task in sorted({r["cfg"]["task"] for r in runs}):
@@ -159,19 +167,22 @@ def first_look_table(patterns=FIRST_LOOK):
     held-out families (20 trials each, eval-ctx-FAMILY-test.json) and, where evaluated, each family's 100 held-out
     scenes (eval-scenes-FAMILY.json: the mean SR and the share of scenes below 0.5)."""
     md = [f"Made by `python tools/report.py` from `{patterns}` (world 22): the stop's validation (training-side scenes "
-          "of each family, successes of 10), the held-out family at 20 mm (20 trials) and, where evaluated, its "
+          f"of each family, successes of {tacrl.FAMILY_EPISODES}), the held-out family at 20 mm (20 trials) and, "
+          "where evaluated, its "
           "first 100 held-out scenes x 3 episodes (mean SR / share of scenes below 0.5).", "",
-          "| task | seed | stopped at | family | validation | held-out, 20 trials | 100 scenes |", "|---|---|---|---|---|---|---|"]
+          "| task | seed | stopped at | family | validation | held-out, 20 trials | 100 scenes |",
+          "|---|---|---|---|---|---|---|"]
     for d in match_runs(patterns):
         run = load_run(d)
         last = run["eval"]["validation"][-1]
-        for f in (f for f in run["cfg"]["randomize"].split(",") if f):
+        for f in families_of(run):
             ctx = os.path.join(d, f"eval-ctx-{f}-test.json")
             held = f"{sr_at(read_json(ctx)['rows']):.2f}" if os.path.exists(ctx) else "-"
             path = os.path.join(d, f"eval-scenes-{f}.json")
             rates = np.array(read_json(path)["rates"]) if os.path.exists(path) else None
             many = "-" if rates is None else f"{rates.mean():.2f} / {(rates < 0.5).mean():.2f}"
-            md.append(f"| {run['cfg']['task']} | {run['cfg']['seed']} | {last['episode']} | {f} | {last[f]}/10 | "
+            md.append(f"| {run['cfg']['task']} | {run['cfg']['seed']} | {last['episode']} | {f} | "
+                      f"{last[f]}/{tacrl.FAMILY_EPISODES} | "
                       f"{held} | {many} |")
     return "\n".join(md)
 
